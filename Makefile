@@ -1,0 +1,47 @@
+# Two commands do everything on a fresh Debian 12 machine (root or sudo):
+#   make demo   install what is missing, then run the main demo
+#   make test   install what is missing, then run the test suite (MPI tests included)
+SHELL := /bin/bash
+VENV := .venv
+PY := $(VENV)/bin/python
+# DOLFINx 0.5.2, PETSc, MPI and gmsh come from Debian; the GL/EGL libraries let the
+# VTK wheel (pyvista) render PNGs off-screen with no X server.
+APT_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python3-gmsh \
+                python3-scipy python3-venv python3-pip openmpi-bin \
+                libgl1 libegl1 libgl1-mesa-dri libosmesa6 libxrender1 libx11-6
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+# One BLAS thread per process (see dolfrag/__init__.py); MPI as root needs these.
+export OPENBLAS_NUM_THREADS := 1
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+
+.PHONY: install system-packages demo test bench clean
+
+install: system-packages $(VENV)/.installed
+
+system-packages:
+	@missing=$$(for p in $(APT_PACKAGES); do \
+	    dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "ok installed" || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	    echo "Installing Debian packages:" $$missing; \
+	    $(SUDO) apt-get update -qq && \
+	    DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $$missing; \
+	fi
+
+$(VENV)/.installed: pyproject.toml
+	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
+	$(PY) -m pip install -q --disable-pip-version-check -e ".[dev]" "numpy<2"
+	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, dolfrag; print('dolfinx', dolfinx.__version__)"
+	@touch $@
+
+demo: install
+	$(PY) demos/sound_bar.py
+
+test: install
+	$(PY) -m pytest -q -rs tests
+
+bench: install
+	$(PY) benchmarks/step_cost.py
+
+clean:
+	rm -rf results .pytest_cache

@@ -1,0 +1,29 @@
+"""dolfrag: fragmentation of concrete under dynamic loads, with cohesive interfaces
+on every facet of a DOLFINx mesh. SI units throughout (m, kg, s, Pa, J).
+
+``dolfrag.run(case, out)`` is the one public entry point; the CLI, demos, tests and
+benchmarks all go through it.
+"""
+try:
+    # VTK must be loaded before DOLFINx: the other order aborts the process with
+    # std::bad_alloc when a scalar bar is drawn (shared/DESIGN.md §9).
+    import pyvista  # noqa: F401
+except ImportError:
+    pass
+
+try:
+    # One BLAS thread per process: MPI ranks already fill the cores, and threaded
+    # OpenBLAS inverts the small star blocks 1,500x slower (20 s against 14 ms for
+    # 1,500 12x12 blocks, measured on these 2-core machines).
+    from threadpoolctl import threadpool_limits
+    threadpool_limits(1)
+except ImportError:
+    pass
+
+__version__ = "0.1.0"
+
+
+def run(case, out, quiet=False, comm=None):
+    """Run a case (config.Case, a path, or a built-in name) and write its outputs into ``out``."""
+    from dolfrag.run import run as _run
+    return _run(case, out, quiet=quiet, comm=comm)

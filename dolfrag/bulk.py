@@ -1,0 +1,94 @@
+"""Bulk elasticity on the DG-P1 space: stiffness K and lumped (diagonal) mass M.
+
+Linear isotropic elasticity, per material group, in plane strain, plane stress
+(unit thickness: forces per metre of depth) or 3D. With a discontinuous space K is
+block-diagonal, one (gdim+1)·gdim square block per cell. Units: E in Pa, rho in
+kg/m^3, so K in N/m and M in kg.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+
+from dolfrag import compat
+
+
+@dataclass
+class Bulk:
+    """K: assembled PETSc matrix (owned rows). m: Function, lumped mass of every dof
+    component (kg), owned and ghost values set. dt_crit: stable central-difference step
+    of the bulk alone (s), the same on every rank."""
+    K: object
+    m: object
+    dt_crit: float
+
+
+def material_fields(space, domain, default, groups):
+    """DG0 fields (lam, mu, rho) from the cell tags; groups: name -> config.Material
+    overriding ``default`` for the cells of that physical group."""
+    Q = compat.dg0_space(space.mesh)
+    lam, mu, rho = (compat.Function(Q) for _ in range(3))
+    n_cells = len(space.cell_dofs)
+    E = np.full(n_cells, default.E)
+    nu = np.full(n_cells, default.nu)
+    dens = np.full(n_cells, default.rho)
+    tags = np.full(n_cells, -1, dtype=np.int32)
+    tags[domain.cell_tags.indices] = domain.cell_tags.values
+    for name, mat in groups.items():
+        cells = tags == domain.materials[name]
+        E[cells], nu[cells], dens[cells] = mat.E, mat.nu, mat.rho
+    mu_c = E / (2 * (1 + nu))
+    lam_c = E * nu / ((1 + nu) * (1 - 2 * nu))
+    if space.gdim == 2 and default.hypothesis == "plane_stress":
+        lam_c = 2 * lam_c * mu_c / (lam_c + 2 * mu_c)
+    cell_of_dof = compat.cell_dofs(Q)[:, 0]
+    for f, values in ((lam, lam_c), (mu, mu_c), (rho, dens)):
+        f.x.array[cell_of_dof] = values
+    return lam, mu, rho
+
+
+def stiffness_form(V, lam, mu):
+    u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+    eps = lambda z: ufl.sym(ufl.grad(z))  # noqa: E731
+    sigma = 2 * mu * eps(u) + lam * ufl.tr(eps(u)) * ufl.Identity(len(u))
+    return ufl.inner(sigma, eps(w)) * ufl.dx
+
+
+def lumped_mass_form(V, rho):
+    w = ufl.TestFunction(V)
+    ones = ufl.as_vector([1.0] * V.mesh.geometry.dim)
+    return rho * ufl.inner(ones, w) * ufl.dx(metadata=compat.vertex_quadrature())
+
+
+def cell_matrices(K, space):
+    """Per-cell stiffness blocks (n_owned_cells, q, q) and their flat dof indices (n, q),
+    q = (gdim+1)·gdim, read from the owned rows of the block-diagonal K."""
+    indptr, cols, vals = K.getValuesCSR()
+    q = space.cell_dofs.shape[1] * space.gdim
+    if np.any(np.diff(indptr) != q):
+        raise RuntimeError("K is not block-diagonal with one full block per cell")
+    start = K.getOwnershipRange()[0]
+    idx = np.sort(space.components(space.cell_dofs[:space.n_owned_cells]), axis=1)
+    rows_cols = cols.reshape(-1, q) - start
+    assert np.array_equal(rows_cols[idx], np.broadcast_to(idx[:, None, :], idx.shape + (q,)))
+    return vals.reshape(-1, q)[idx], idx
+
+
+def stable_time_step(Ke, me, comm):
+    """Central-difference limit 2/omega_max of the bulk alone (s). With K block-diagonal
+    and M diagonal, omega_max^2 is the largest eigenvalue of the cell problems
+    Ke x = omega^2 diag(me) x, so the bound is exact. Collective."""
+    s = 1 / np.sqrt(me)
+    lam = np.linalg.eigvalsh(s[:, :, None] * Ke * s[:, None, :])[:, -1] if len(Ke) else [0.0]
+    return 2 / np.sqrt(comm.allreduce(np.max(lam), op=MPI.MAX))
+
+
+def assemble(space, domain, case):
+    """K, lumped mass and the bulk stable step for the case's materials. Collective."""
+    lam, mu, rho = material_fields(space, domain, case.material, case.materials)
+    K = compat.assemble_matrix(stiffness_form(space.V, lam, mu))
+    m = compat.Function(space.V)
+    compat.assemble_vector(lumped_mass_form(space.V, rho), m)
+    Ke, idx = cell_matrices(K, space)
+    return Bulk(K, m, stable_time_step(Ke, m.x.array[idx], space.mesh.comm))

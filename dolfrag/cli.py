@@ -1,0 +1,55 @@
+"""The `dolfrag` command: a thin layer over dolfrag.run.
+
+    dolfrag run CASE [--out DIR] [--set section.key=value ...] [--quiet]
+    dolfrag cases [NAME]
+
+CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
+and one line naming the key, the value and what is allowed.
+"""
+import argparse
+import sys
+
+from mpi4py import MPI
+
+from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
+
+
+def _parser():
+    parser = argparse.ArgumentParser(prog="dolfrag", description="Fragmentation of concrete "
+                                     "under dynamic loads (cohesive interfaces on every facet). SI units.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a case")
+    run.add_argument("case", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
+    run.add_argument("--out", help="output directory (default: results/<case name>)")
+    run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                     help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    cases = sub.add_parser("cases", help="list built-in cases, or print one as TOML")
+    cases.add_argument("name", nargs="?")
+    return parser
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
+    comm = MPI.COMM_WORLD
+    try:
+        if args.command == "cases":
+            if comm.rank == 0:
+                print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
+            return 0
+        case = load_case(args.case, args.set)
+        from dolfrag.run import run
+        summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
+    except CaseError as err:
+        if comm.rank == 0:
+            print(f"dolfrag: error: {err}", file=sys.stderr)
+        return 2
+    if comm.rank == 0 and not args.quiet:
+        print(f"{case.name}: {summary['steps']} steps, {summary['cells']} cells, {summary['links']} links, "
+              f"{summary['wall_time_s']:.1f} s on {summary['ranks']} rank(s); "
+              f"energy balance error {summary['balance_error_relative']:.1e} of the work")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,447 @@
+"""Case files: a TOML file in, validated frozen dataclasses out.
+
+A case file describes one run. SI units everywhere (m, Pa, kg/m^3, s, Pa/m).
+Example::
+
+    name = "bar"                 # optional, default: the file name without .toml
+    description = "plane wave through a layered bar"
+
+    [geometry]
+    kind = "rectangle"           # "rectangle" | "box" | "file"
+    length = 1.0                 # m (x extent)
+    width = 0.1                  # m (y extent)
+
+    [mesh]
+    size = 0.01                  # m, target element size
+
+    [material]
+    E = 3.0e10                   # Pa
+    nu = 0.2
+    rho = 2400.0                 # kg/m^3
+
+    [interface]
+    law = "elastic"              # C_N = C_T = stiffness_ratio * E / mesh.size unless given
+
+    [load]
+    boundary = "left"
+    signal = "triangular"        # or "table" with file = "pulse.csv" (columns t [s], p [Pa])
+    peak = 1.0e6                 # Pa, positive pushes into the body
+    rise = 1.0e-5                # s
+    duration = 2.0e-5            # s
+
+    [supports]
+    rollers = ["bottom", "top"]
+
+    [time]
+    end = 4.0e-4                 # s
+
+The sections and keys are the fields of the dataclasses below; each field's comment gives
+its unit, range and default. Relative paths (geometry.file, load.file) are relative to the
+case file's directory (in --set overrides: to the current directory).
+
+``load_case(path_or_builtin_name, overrides)`` is the entry point; overrides are
+"section.key=value" strings (the CLI's --set). Every bad input raises CaseError with a
+one-line message naming the dotted key.
+"""
+from __future__ import annotations
+
+import math
+import operator
+import tomllib
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+GEOMETRY_KINDS = ("rectangle", "box", "file")
+HYPOTHESES = ("plane_strain", "plane_stress")
+LAWS = ("elastic",)
+SIGNALS = ("triangular", "table")
+SCHEMES = ("imex",)
+RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
+BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
+
+_CASES_DIR = Path(__file__).parent / "cases"
+
+
+class CaseError(ValueError):
+    """Bad user input; str(err) is one line naming the key, the value and what is allowed."""
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).splitlines()))
+
+
+# ---------------------------------------------------------------- field specs
+_REQ = object()  # spec default meaning "required"
+_OPS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}
+_NOUNS = {"float": "a number", "int": "an integer", "str": "a string",
+          "bool": "true or false", "names": "a list of strings", "path": "a path to a file"}
+_TYPES = {"float": (int, float), "int": (int, float), "str": str, "bool": bool, "names": list,
+          "path": str}
+
+
+@dataclass(frozen=True)
+class _Spec:
+    kind: str                 # one of _NOUNS
+    default: Any = _REQ
+    bounds: str = ""          # e.g. "> 0" or ">= 0, < 0.5"
+    unit: str = ""
+    choices: tuple = ()
+    when: tuple = ()          # (discriminator field, values...): the key exists only then
+    suffixes: tuple = ()      # allowed file suffixes for kind "path"
+
+    def describe(self) -> str:
+        if self.choices:
+            return "must be one of " + ", ".join(map(repr, self.choices))
+        noun = _NOUNS[self.kind]
+        if self.suffixes:
+            noun = f"a path to a {' or '.join(self.suffixes)} file"
+        text = f"must be {noun}"
+        if self.bounds:
+            text += " " + self.bounds.replace(",", " and")
+        return text + (f" ({self.unit})" if self.unit else "")
+
+    def admits(self, number: float) -> bool:
+        pairs = (part.split() for part in self.bounds.split(",") if part)
+        return all(_OPS[op](number, float(limit)) for op, limit in pairs)
+
+    def condition(self, prefix: str) -> str:
+        return f"{prefix}.{self.when[0]} is " + " or ".join(map(repr, self.when[1:]))
+
+
+def _f(kind: str, default: Any = _REQ, bounds: str = "", unit: str = "", **kw) -> Any:
+    """A dataclass field carrying its validation spec (conditional fields default to None)."""
+    spec = _Spec(kind, default, bounds, unit, **kw)
+    if default is _REQ:
+        default = None if spec.when else MISSING
+    return field(default=default, metadata={"spec": spec})
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _convert(key: str, value: Any, spec: _Spec, base: Path) -> Any:
+    """Check one value against its spec; return it converted (float, int, tuple, Path)."""
+    bad = CaseError(f"{key} = {_show(value)}: {spec.describe()}")
+    kind = spec.kind
+    if not isinstance(value, _TYPES[kind]) or (isinstance(value, bool) and kind != "bool"):
+        raise bad
+    if kind in ("float", "int"):
+        if not math.isfinite(value) or (kind == "int" and not float(value).is_integer()):
+            raise bad
+        value = int(value) if kind == "int" else float(value)
+        if not spec.admits(value):
+            raise bad
+    if kind == "names":
+        if not all(isinstance(name, str) for name in value):
+            raise bad
+        value = tuple(value)
+    if spec.choices and value not in spec.choices:
+        raise bad
+    if kind == "path":
+        path = (base / value).resolve()
+        if not value or (spec.suffixes and path.suffix not in spec.suffixes):
+            raise bad
+        if not path.is_file():
+            raise CaseError(f"{key} = {_show(value)}: file not found ({path})")
+        value = path
+    return value
+
+
+def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
+    """Validate the table `raw` against the specs in the fields of dataclass `cls`."""
+    if not isinstance(raw, dict):
+        raise CaseError(f"{prefix} = {_show(raw)}: must be a table [{prefix}]")
+    specs = {f.name: f.metadata["spec"] for f in fields(cls) if "spec" in f.metadata}
+    for name in raw:
+        if name not in specs:
+            raise CaseError(f"unknown key '{prefix}.{name}'; allowed: {', '.join(specs)}")
+    out: dict[str, Any] = {}
+    for name, spec in specs.items():
+        key = f"{prefix}.{name}"
+        if spec.when and out[spec.when[0]] not in spec.when[1:]:
+            if name in raw:
+                raise CaseError(f"{key} = {_show(raw[name])}: "
+                                f"only allowed when {spec.condition(prefix)}")
+            out[name] = None
+        elif name in raw:
+            out[name] = _convert(key, raw[name], spec, base)
+        elif spec.default is _REQ:
+            needed = f" (required when {spec.condition(prefix)})" if spec.when else ""
+            raise CaseError(f"missing key {key}{needed}: {spec.describe()}")
+        else:
+            out[name] = spec.default
+    return cls(**out)
+
+
+# ---------------------------------------------------------------- sections
+_PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several fields
+_IMPORTED = ("kind", "file")
+_TRIANGLE = ("signal", "triangular")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """[geometry]: the domain, generated (rectangle, box) or imported (file)."""
+    kind: str = _f("str", choices=GEOMETRY_KINDS)                     # "rectangle" | "box" | "file"
+    length: float | None = _f("float", bounds="> 0", unit="m", when=_PLANAR)   # x extent > 0
+    width: float | None = _f("float", bounds="> 0", unit="m", when=_PLANAR)    # y extent > 0
+    thickness: float | None = _f("float", bounds="> 0", unit="m", when=("kind", "box"))  # z > 0
+    file: Path | None = _f("path", when=_IMPORTED, suffixes=(".geo", ".msh"))  # absolute Path
+    dim: int | None = _f("int", 2, choices=(2, 3), when=_IMPORTED)      # 2 | 3, default 2
+
+    @property
+    def boundaries(self) -> tuple[str, ...] | None:
+        """Boundary names known before meshing (None for imported meshes)."""
+        return {"rectangle": RECTANGLE_BOUNDARIES, "box": BOX_BOUNDARIES}.get(self.kind)
+
+    @property
+    def tdim(self) -> int:
+        """Topological dimension of the cells: 2 or 3."""
+        return {"rectangle": 2, "box": 3}.get(self.kind, self.dim)
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """[mesh]"""
+    size: float = _f("float", bounds="> 0", unit="m")           # target element size h [m], > 0
+
+
+@dataclass(frozen=True)
+class Material:
+    """[material] (every cell) and [materials.NAME] (cells of physical group NAME)."""
+    E: float = _f("float", bounds="> 0", unit="Pa")             # Young's modulus [Pa], > 0
+    nu: float = _f("float", bounds=">= 0, < 0.5")               # Poisson's ratio [-], [0, 0.5)
+    rho: float = _f("float", bounds="> 0", unit="kg/m^3")       # density [kg/m^3], > 0
+    hypothesis: str = _f("str", "plane_strain", choices=HYPOTHESES)  # 2D only, ignored in 3D
+
+
+@dataclass(frozen=True)
+class Interface:
+    """[interface]: cohesive law of every inter-element facet.
+
+    When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the seed's C = 10 E / h).
+    """
+    law: str = _f("str", "elastic", choices=LAWS)                   # one of LAWS
+    C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
+    C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
+    stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
+
+    def stiffness(self, E: float, h: float) -> tuple[float, float]:
+        """(C_N, C_T) [Pa/m]: the given values, else stiffness_ratio * E / h."""
+        rule = self.stiffness_ratio * E / h
+        return (rule if self.C_N is None else self.C_N, rule if self.C_T is None else self.C_T)
+
+
+@dataclass(frozen=True)
+class Load:
+    """[load]: pressure p(t) on one boundary, positive pushes into the body.
+
+    triangular: linear 0 -> peak over [0, rise], then linear back to 0 at `duration`.
+    table: p(t) from a CSV file (columns t [s], p [Pa]), parsed into `t` and `p`.
+    """
+    boundary: str = _f("str")                                        # a geometry boundary
+    signal: str = _f("str", "triangular", choices=SIGNALS)           # "triangular" | "table"
+    peak: float | None = _f("float", bounds=">= 0", unit="Pa", when=_TRIANGLE)     # >= 0
+    rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_TRIANGLE)  # >= 0
+    duration: float | None = _f("float", bounds="> 0", unit="s", when=_TRIANGLE)   # >= rise
+    file: Path | None = _f("path", when=("signal", "table"))         # absolute Path of the CSV
+    # parsed from `file` (table only; left out of ==, which compares `file`):
+    t: np.ndarray | None = field(default=None, compare=False)  # [s] increasing, read-only f8
+    p: np.ndarray | None = field(default=None, compare=False)  # [Pa], read-only float64
+
+
+@dataclass(frozen=True)
+class Supports:
+    """[supports]: boundary names; a boundary may be in one list only."""
+    rollers: tuple[str, ...] = _f("names", ())   # zero normal displacement
+    clamped: tuple[str, ...] = _f("names", ())   # zero displacement (never the load boundary)
+
+
+@dataclass(frozen=True)
+class Time:
+    """[time]"""
+    end: float = _f("float", bounds="> 0", unit="s")              # final time [s], > 0
+    scheme: str = _f("str", "imex", choices=SCHEMES)              # one of SCHEMES
+    cfl: float = _f("float", 0.9, bounds="> 0, <= 1")             # safety factor on bulk dt, (0, 1]
+
+
+@dataclass(frozen=True)
+class Output:
+    """[output]"""
+    every: int = _f("int", 10, bounds=">= 1")     # steps between rows of history.csv, >= 1
+    fields: int = _f("int", 10, bounds=">= 0")    # field snapshots over the run, >= 0 (0 = none)
+    figures: bool = _f("bool", True)              # write figures at the end
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    description: str
+    geometry: Geometry
+    mesh: Mesh
+    material: Material
+    materials: dict[str, Material]   # per-physical-group overrides of `material`
+    interface: Interface
+    load: Load
+    supports: Supports
+    time: Time
+    output: Output
+    source: Path | None = None       # the case file this came from
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable dict (paths as str, arrays and tuples as lists)."""
+        return _plain(self)
+
+
+_SECTIONS = {"geometry": Geometry, "mesh": Mesh, "material": Material, "interface": Interface,
+             "load": Load, "supports": Supports, "time": Time, "output": Output}
+_TOP_KEYS = ("name", "description", *_SECTIONS, "materials")
+_PATH_KEYS = {f"{s}.{f.name}" for s, cls in _SECTIONS.items() for f in fields(cls)
+              if "spec" in f.metadata and f.metadata["spec"].kind == "path"}
+
+
+def _plain(x: Any) -> Any:
+    if is_dataclass(x):
+        return {f.name: _plain(getattr(x, f.name)) for f in fields(x)}
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return str(x) if isinstance(x, Path) else x
+
+
+# ---------------------------------------------------------------- loading
+def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Parse a 't, p' CSV (optional header line); CaseError names the file and the line."""
+    where = f"load.file = '{path}'"
+    try:
+        lines = [(n, s.strip()) for n, s in enumerate(path.read_text("utf-8").splitlines(), 1)]
+    except (OSError, UnicodeDecodeError) as err:
+        raise CaseError(f"{where}: cannot read: {err}") from None
+    rows: list[tuple[float, float]] = []
+    for i, (number, line) in enumerate(s for s in lines if s[1]):
+        try:
+            t, p = (float(cell) for cell in line.split(","))
+            if not (math.isfinite(t) and math.isfinite(p)):
+                raise ValueError
+        except ValueError:
+            if i == 0:  # header line
+                continue
+            raise CaseError(f"{where}: line {number}: {_show(line)} is not two finite "
+                            "comma-separated numbers 't, p'") from None
+        if rows and t <= rows[-1][0]:
+            raise CaseError(f"{where}: line {number}: t = {t!r} s is not greater than the "
+                            f"previous t = {rows[-1][0]!r} s (t must be strictly increasing)")
+        rows.append((t, p))
+    if len(rows) < 2:
+        raise CaseError(f"{where}: needs at least 2 rows 't, p', found {len(rows)}")
+    t_arr, p_arr = np.array(rows, dtype=np.float64).T.copy()
+    for arr in (t_arr, p_arr):
+        arr.setflags(write=False)
+    return t_arr, p_arr
+
+
+def _check(case: Case) -> None:
+    """Rules linking several keys or sections."""
+    load, sup, known = case.load, case.supports, case.geometry.boundaries
+    if load.signal == "triangular" and load.duration < load.rise:
+        raise CaseError(f"load.duration = {load.duration!r}: "
+                        f"must be >= load.rise = {load.rise!r} (s)")
+    named = {"load.boundary": load.boundary, "supports.rollers": list(sup.rollers),
+             "supports.clamped": list(sup.clamped)}
+    for key, value in named.items():
+        for name in [value] if isinstance(value, str) else value:
+            if known is not None and name not in known:
+                raise CaseError(f"{key} = {_show(value)}: unknown boundary {name!r}; "
+                                f"allowed: {', '.join(known)}")
+    for name in sup.clamped:
+        why = ("is also in supports.rollers (a boundary may be in one list only)"
+               if name in sup.rollers else
+               "is the load.boundary (the loaded boundary may not be clamped)"
+               if name == load.boundary else "")
+        if why:
+            raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {name!r} {why}")
+
+
+def _build(raw: dict, source: Path) -> Case:
+    base = source.parent
+    for key, value in raw.items():
+        if key not in _TOP_KEYS:
+            kind = "section" if isinstance(value, dict) else "key"
+            raise CaseError(f"unknown {kind} '{key}'; allowed: {', '.join(_TOP_KEYS)}")
+    parts = {s: _section(cls, raw.get(s, {}), s, base) for s, cls in _SECTIONS.items()}
+    mats = raw.get("materials", {})
+    if not isinstance(mats, dict):
+        raise CaseError(f"materials = {_show(mats)}: must be a table of tables [materials.NAME]")
+    inherit = {"hypothesis": parts["material"].hypothesis}
+    materials = {name: _section(Material, {**inherit, **tbl} if isinstance(tbl, dict) else tbl,
+                                f"materials.{name}", base) for name, tbl in mats.items()}
+    if parts["load"].signal == "table":
+        t, p = _read_table(parts["load"].file)
+        parts["load"] = replace(parts["load"], t=t, p=p)
+    case = Case(name=_convert("name", raw.get("name", source.stem), _Spec("str"), base),
+                description=_convert("description", raw.get("description", ""), _Spec("str"), base),
+                materials=materials, source=source, **parts)
+    _check(case)
+    return case
+
+
+def _apply_override(raw: dict, item: str) -> None:
+    """Apply one "section.key=value" string; the value is TOML if it parses, else a bare string."""
+    key, sep, text = item.partition("=")
+    parts = [part.strip() for part in key.split(".")]
+    if not sep or not all(parts):
+        raise CaseError(f"--set {_show(item)}: expected section.key=value")
+    try:
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text.strip()
+    if ".".join(parts) in _PATH_KEYS and isinstance(value, str) and value:
+        value = str(Path(value).resolve())  # a path given on the command line: relative to cwd
+    table = raw
+    for depth, part in enumerate(parts[:-1], 1):
+        table = table.setdefault(part, {})
+        if not isinstance(table, dict):
+            raise CaseError(f"--set {_show(item)}: {'.'.join(parts[:depth])} is not a table")
+    table[parts[-1]] = value
+
+
+def builtin_cases() -> list[str]:
+    """Sorted names of the built-in cases (dolfrag/cases/*.toml); [] if there are none."""
+    return sorted(p.stem for p in _CASES_DIR.glob("*.toml")) if _CASES_DIR.is_dir() else []
+
+
+def _unknown_case(source: Any) -> CaseError:
+    names = ", ".join(builtin_cases()) or "(none)"
+    return CaseError(f"case {str(source)!r}: no such file or built-in case; "
+                     f"built-in cases: {names}")
+
+
+def builtin_case_text(name: str) -> str:
+    """Full TOML text of the built-in case `name`."""
+    if name not in builtin_cases():
+        raise _unknown_case(name)
+    return (_CASES_DIR / f"{name}.toml").read_text(encoding="utf-8")
+
+
+def load_case(source: str | Path, overrides: Sequence[str] = ()) -> Case:
+    """Read a case from a .toml path or a built-in case name, apply overrides, validate."""
+    path = Path(source).expanduser()
+    if not path.is_file():
+        if str(source) not in builtin_cases():
+            raise _unknown_case(source)
+        path = _CASES_DIR / f"{source}.toml"
+    path = path.resolve()
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as err:
+        raise CaseError(f"{path}: invalid TOML: {err}") from None
+    for item in overrides:
+        _apply_override(raw, item)
+    return _build(raw, path)

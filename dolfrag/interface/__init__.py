@@ -1,0 +1,1 @@
+"""Cohesive interfaces on every facet: links, laws, star-local step solves."""

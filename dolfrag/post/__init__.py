@@ -1,0 +1,1 @@
+"""Post-processing: reads the state, never changes it."""

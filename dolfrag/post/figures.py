@@ -1,0 +1,53 @@
+"""Figures (PNG, off-screen pyvista). Without pyvista they are skipped with one line."""
+import sys
+
+import numpy as np
+from mpi4py import MPI
+
+
+def _gather_broken_mesh(space, displacement, values):
+    """Owned cells' corner coordinates (+ displacement, flat per dof component) and
+    per-dof values, gathered on rank 0 (None elsewhere)."""
+    corners = space.cell_dofs[:space.n_owned_cells].ravel()
+    points = space.x[corners] + displacement.reshape(-1, space.gdim)[corners]
+    gathered = space.mesh.comm.gather((points, values[corners]), root=0)
+    if gathered is None:
+        return None
+    return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
+
+
+def broken_mesh_png(space, u, field, path, label, scale=None):
+    """The broken (DG) mesh deformed by ``scale * u`` and coloured by the magnitude of
+    ``field`` (a Function, e.g. the velocity). When ``scale`` is None the largest
+    displacement is drawn as 2 % of the body size. Collective; rank 0 draws."""
+    d = space.gdim
+    comm = space.mesh.comm
+    umax = comm.allreduce(np.abs(u.x.array[:space.n_owned_dofs * d]).max(initial=0.0), op=MPI.MAX)
+    size = comm.allreduce(np.ptp(space.x, axis=0).max() if len(space.x) else 0.0, op=MPI.MAX)
+    if scale is None:
+        scale = 0.02 * size / umax if umax > 0 else 1.0
+    magnitude = np.linalg.norm(field.x.array.reshape(-1, d), axis=1)
+    data = _gather_broken_mesh(space, scale * u.x.array, magnitude)
+    if data is None:
+        return
+    try:
+        import pyvista as pv
+    except ImportError:
+        print(f"pyvista is not installed: {path} not drawn (pip install pyvista)", file=sys.stderr)
+        return
+    points, values = data
+    nv = d + 1
+    points = np.column_stack([points, np.zeros((len(points), 3 - d))])
+    n_cells = len(points) // nv
+    conn = np.column_stack([np.full(n_cells, nv), np.arange(n_cells * nv).reshape(-1, nv)]).ravel()
+    cell_type = pv.CellType.TRIANGLE if nv == 3 else pv.CellType.TETRA
+    grid = pv.UnstructuredGrid(conn, np.full(n_cells, cell_type, np.uint8), points)
+    grid.point_data[label] = values
+    plotter = pv.Plotter(off_screen=True, window_size=(1200, 600))
+    plotter.add_mesh(grid, scalars=label, cmap="viridis",
+                     scalar_bar_args={"title": label, "vertical": False})
+    plotter.add_text(f"displacement x {scale:.3g}", font_size=10)
+    if d == 2:
+        plotter.view_xy()
+    plotter.screenshot(str(path))
+    plotter.close()

@@ -1,0 +1,108 @@
+"""`run(case, out)`: mesh, operators, time loop and outputs of one case.
+
+Everything the user can get wrong is checked before ``out`` is created, so bad
+input leaves no half-written directory behind.
+"""
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfrag import __version__, bulk, loads, mesh, space as spaces, supports
+from dolfrag.config import Case, load_case
+from dolfrag.interface import links as link_table
+from dolfrag.interface.jumps import Jump
+from dolfrag.interface.stars import Stars
+from dolfrag.post.figures import broken_mesh_png
+from dolfrag.post.output import RunOutput
+from dolfrag.progress import Progress
+from dolfrag.solver.imex import Imex
+
+ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "W_external_J", "balance_error_J"]
+
+
+def setup(case, comm):
+    """Mesh, space, operators and the integrator for ``case``. Collective."""
+    domain = mesh.build(case.geometry, case.mesh.size, comm)
+    for name in (case.load.boundary, *case.supports.rollers, *case.supports.clamped):
+        domain.boundary_tag(name)
+    space = spaces.create(domain)
+    bulk_ops = bulk.assemble(space, domain, case)
+    links = link_table.build(space)
+    stars = Stars(space, links, supports.constrained_components(space, domain, case.supports))
+    C_N, C_T = case.interface.stiffness(case.material.E, case.mesh.size)
+    n_steps = math.ceil(case.time.end / (case.time.cfl * bulk_ops.dt_crit))
+    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
+    integrator = Imex(space, bulk_ops, Jump(space, links), stars, C_N, C_T, load,
+                      loads.signal(case.load), case.time.end / n_steps)
+    return domain, space, links, integrator, n_steps, bulk_ops.dt_crit
+
+
+def _probes(space, domain):
+    """Owned flat components of every named boundary, for its mean velocity."""
+    probes = {}
+    for name, tag in sorted(domain.boundaries.items()):
+        dofs = space.boundary_dofs(domain.facet_tags, tag)
+        dofs = dofs[dofs < space.n_owned_dofs]
+        for k, axis in enumerate("xyz"[:space.gdim]):
+            probes[f"v{axis}_{name}_m_s"] = space.gdim * dofs + k
+    return probes
+
+
+def run(case, out, quiet=False, comm=None):
+    """Run ``case`` (a config.Case, a case file path or a built-in name); write
+    summary.json, history.csv, fields.pvd and figures/ into ``out``. Collective.
+    Returns the summary dict."""
+    comm = comm or MPI.COMM_WORLD
+    if not isinstance(case, Case):
+        case = load_case(case)
+    wall_start = time.perf_counter()
+    domain, space, links, integ, n_steps, dt_crit = setup(case, comm)
+    probes = _probes(space, domain)
+    columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, *probes]
+    snapshots = set(np.round(np.linspace(0, n_steps, case.output.fields + 1)).astype(int)) \
+        if case.output.fields else set()
+    output = RunOutput(out, comm, columns, fields=bool(snapshots))
+    progress = Progress(n_steps, quiet=quiet, rank=comm.rank)
+    summary = {"case": case.to_dict(), "version": __version__, "ranks": comm.size,
+               "cells": space.mesh.topology.index_map(space.mesh.topology.dim).size_global,
+               "links": comm.allreduce(len(links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
+               "steps": n_steps, "dt_s": integ.h, "dt_crit_s": dt_crit,
+               "interface_stiffness_Pa_m": {"C_N": integ.C_N, "C_T": integ.C_T}, "status": "running"}
+    max_error, max_work, energies = 0.0, 0.0, None
+    try:
+        if 0 in snapshots:
+            output.fields([integ.u, integ.v], 0.0)
+        for k in range(1, n_steps + 1):
+            t_n = integ.t
+            energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
+            if energies is not None:
+                probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
+                output.row([k, t_n + integ.h / 2, integ.pressure(t_n), energies.kinetic, energies.bulk,
+                            energies.interface, energies.external_work, energies.balance_error,
+                            *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])
+                max_error = max(max_error, abs(energies.balance_error))
+                max_work = max(max_work, abs(energies.external_work))
+            if k in snapshots:
+                output.fields([integ.u, integ.v], integ.t)
+            progress.update(k)
+        summary["status"] = "completed"
+    except BaseException as err:
+        summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"
+        raise
+    finally:
+        summary["steps_done"] = integ.n
+        summary["wall_time_s"] = time.perf_counter() - wall_start
+        if energies is not None:
+            summary["energies_J"] = {c: getattr(energies, a) for c, a in zip(
+                ENERGY_COLUMNS, ("kinetic", "bulk", "interface", "external_work", "balance_error"))}
+        summary["max_abs_balance_error_J"] = max_error
+        summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
+        output.summary(summary)
+        output.close()
+    if case.output.figures:
+        broken_mesh_png(space, integ.u, integ.v, Path(out) / "figures" / "velocity.png",
+                        "velocity magnitude (m/s)")
+    return summary

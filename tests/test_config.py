@@ -1,0 +1,198 @@
+"""Tests for dolfrag.config: TOML case files -> validated dataclasses."""
+import copy
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dolfrag.config import CaseError, Interface, builtin_case_text, load_case
+
+DEL = object()  # marks a key to delete from BASE
+BASE = {
+    "geometry": {"kind": "rectangle", "length": 2, "width": 0.1},
+    "mesh": {"size": 0.01},
+    "material": {"E": 3e10, "nu": 0.2, "rho": 2400.0},
+    "load": {"boundary": "left", "peak": 1e6, "rise": 1e-5, "duration": 2e-5},
+    "supports": {"rollers": ["bottom", "top"]},
+    "time": {"end": 1e-4},
+}
+TABLE = {"load.signal": "table", "load.peak": DEL, "load.rise": DEL, "load.duration": DEL,
+         "load.file": "p.csv"}
+FILE = {"geometry.kind": "file", "geometry.length": DEL, "geometry.width": DEL}
+
+
+def _value(v):
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(map(_value, v)) + "]"
+    return repr(v)
+
+
+def _render(d, path=()):
+    lines = [f"[{'.'.join(path)}]"] if path else []
+    lines += [f"{k} = {_value(v)}" for k, v in d.items() if not isinstance(v, dict)]
+    for k, v in d.items():
+        if isinstance(v, dict):
+            lines += _render(v, path + (k,))
+    return lines
+
+
+def write_case(tmp_path, changes=(), csv=None, name="bar.toml"):
+    """Write BASE with dotted-key `changes` applied (DEL removes) and optionally p.csv."""
+    d = copy.deepcopy(BASE)
+    for key, v in dict(changes).items():
+        *parents, last = key.split(".")
+        table = d
+        for p in parents:
+            table = table.setdefault(p, {})
+        table.pop(last, None) if v is DEL else table.__setitem__(last, v)
+    if csv is not None:
+        (tmp_path / "p.csv").write_text(csv)
+    path = tmp_path / name
+    path.write_text("\n".join(_render(d)) + "\n")
+    return path
+
+
+def test_valid_rectangle_values_and_defaults(tmp_path):
+    case = load_case(write_case(tmp_path))
+    assert case.name == "bar" and case.description == ""
+    assert case.source == (tmp_path / "bar.toml").resolve()
+    g = case.geometry
+    assert (g.kind, g.length, g.width, g.thickness, g.file) == ("rectangle", 2.0, 0.1, None, None)
+    assert isinstance(g.length, float)
+    assert g.tdim == 2 and g.boundaries == ("left", "right", "bottom", "top")
+    assert case.mesh.size == 0.01
+    m = case.material
+    assert (m.E, m.nu, m.rho, m.hypothesis) == (3e10, 0.2, 2400.0, "plane_strain")
+    assert case.materials == {}
+    i = case.interface
+    assert (i.law, i.C_N, i.C_T, i.stiffness_ratio) == ("elastic", None, None, 10.0)
+    ld = case.load
+    assert (ld.boundary, ld.signal, ld.peak, ld.rise, ld.duration) == ("left", "triangular", 1e6, 1e-5, 2e-5)
+    assert ld.file is None and ld.t is None and ld.p is None
+    assert case.supports.rollers == ("bottom", "top") and case.supports.clamped == ()
+    assert (case.time.scheme, case.time.end, case.time.cfl) == ("imex", 1e-4, 0.9)
+    assert (case.output.every, case.output.fields, case.output.figures) == (10, 10, True)
+    d = json.loads(json.dumps(case.to_dict()))
+    assert d["geometry"]["length"] == 2.0 and d["supports"]["rollers"] == ["bottom", "top"]
+    assert d["source"] == str(case.source)
+
+
+def test_box_materials_and_rise_default(tmp_path):
+    case = load_case(write_case(tmp_path, {
+        "geometry.kind": "box", "geometry.thickness": 0.2, "load.rise": DEL,
+        "material.hypothesis": "plane_stress", "materials.steel": {"E": 2e11, "nu": 0.3, "rho": 7800},
+        "supports.clamped": ["back"]}))
+    assert case.geometry.tdim == 3 and "front" in case.geometry.boundaries
+    assert case.load.rise == 0.0
+    assert case.materials["steel"].E == 2e11 and case.materials["steel"].hypothesis == "plane_stress"
+
+
+def test_table_load_relative_to_case_dir(tmp_path, monkeypatch):
+    path = write_case(tmp_path, TABLE, csv="t,p\n0,0\n1e-5, 2e6\n\n3e-5,0\n")
+    monkeypatch.chdir(tmp_path.parent)
+    case = load_case(Path(tmp_path.name) / path.name)
+    assert case.load.file == (tmp_path / "p.csv").resolve()
+    assert case.load.t.dtype == np.float64
+    np.testing.assert_array_equal(case.load.t, [0, 1e-5, 3e-5])
+    np.testing.assert_array_equal(case.load.p, [0, 2e6, 0])
+    assert case.load.peak is None and case.load.duration is None
+    assert json.loads(json.dumps(case.to_dict()))["load"]["p"] == [0, 2e6, 0]
+
+
+@pytest.mark.parametrize("changes, csv, key", [
+    ({"mesh.size": DEL}, None, "mesh.size"),
+    ({"time": DEL}, None, "time.end"),
+    ({"material.E": -3.0}, None, "material.E"),
+    ({"material.E": math.nan}, None, "material.E"),
+    ({"material.nu": 0.5}, None, "material.nu"),
+    ({"material.rho": "heavy"}, None, "material.rho"),
+    ({"mesh.size": True}, None, "mesh.size"),
+    ({"output.every": 2.5}, None, "output.every"),
+    ({"output.figures": 1}, None, "output.figures"),
+    ({"mesh": 3}, None, "mesh"),
+    ({"foo.bar": 1}, None, "foo"),
+    ({"material.Ee": 1.0}, None, "material.Ee"),
+    ({"interface.law": "cohesive"}, None, "interface.law"),
+    ({"time.scheme": "theta"}, None, "time.scheme"),
+    ({"load.boundary": "lft"}, None, "load.boundary"),
+    ({"supports.rollers": ["bottom", "side"]}, None, "supports.rollers"),
+    ({"supports.rollers": "bottom"}, None, "supports.rollers"),
+    ({"supports.clamped": ["bottom"]}, None, "supports.clamped"),
+    ({"supports.clamped": ["left"]}, None, "supports.clamped"),
+    ({"load.rise": 3e-5}, None, "load.duration"),
+    ({"geometry.thickness": 0.1}, None, "geometry.thickness"),
+    ({"geometry.kind": "box"}, None, "geometry.thickness"),
+    ({**FILE, "geometry.file": "nope.msh"}, None, "geometry.file"),
+    ({**FILE}, None, "geometry.file"),
+    ({"geometry.file": "mesh.msh"}, None, "geometry.file"),
+    (TABLE, None, "load.file"),
+    ({**TABLE, "load.peak": 1.0}, "0,0\n1,1\n", "load.peak"),
+    ({"load.file": "p.csv"}, "0,0\n1,1\n", "load.file"),
+    (TABLE, "t,p\n0,0\n1e-5,abc\n", "load.file * line 3"),
+    (TABLE, "0,0\n1e-5,1\n1e-5,0\n", "load.file * line 3"),
+    (TABLE, "0,0,0\n1,1,1\n", "load.file * line 2"),
+    (TABLE, "t,p\n0,0\n", "load.file"),
+])
+def test_invalid_case_raises_one_line_error(tmp_path, changes, csv, key):
+    with pytest.raises(CaseError) as info:
+        load_case(write_case(tmp_path, changes, csv))
+    msg = str(info.value)
+    assert "\n" not in msg
+    for part in key.split(" * "):
+        assert part in msg
+
+
+def test_error_message_format(tmp_path):
+    with pytest.raises(CaseError, match=r"^material\.E = -3\.0: must be a number > 0 \(Pa\)$"):
+        load_case(write_case(tmp_path, {"material.E": -3.0}))
+    with pytest.raises(CaseError, match="^unknown key 'material.Ee'; allowed: E, nu, rho, hypothesis$"):
+        load_case(write_case(tmp_path, {"material.Ee": 1.0}))
+
+
+def test_overrides(tmp_path):
+    path = write_case(tmp_path)
+    case = load_case(path, ["material.E=1e6", "mesh.size=1", "load.boundary=right",
+                            'description="a b"', 'supports.rollers=["top"]', "output.figures=false",
+                            "interface.C_N = 5e12"])
+    assert case.material.E == 1e6 and case.mesh.size == 1.0 and isinstance(case.mesh.size, float)
+    assert case.load.boundary == "right" and case.description == "a b"
+    assert case.supports.rollers == ("top",) and case.output.figures is False
+    assert case.interface.C_N == 5e12
+
+
+@pytest.mark.parametrize("item, key", [
+    ("material.Ee=1", "material.Ee"),
+    ("materal.E=1", "materal"),
+    ("material.E=abc", "material.E = 'abc'"),
+    ("output.every=0", "output.every"),
+    ("material.E", "material.E"),
+    ("material.E.x=1", "material.E"),
+])
+def test_bad_override(tmp_path, item, key):
+    with pytest.raises(CaseError, match="^[^\n]*$") as info:
+        load_case(write_case(tmp_path), [item])
+    assert key in str(info.value)
+
+
+def test_stiffness():
+    assert Interface().stiffness(3e10, 0.01) == pytest.approx((10 * 3e10 / 0.01,) * 2)
+    assert Interface(stiffness_ratio=2.0).stiffness(1.0, 0.5) == (4.0, 4.0)
+    assert Interface(C_N=7.0).stiffness(1.0, 0.5) == (7.0, 20.0)
+    assert Interface(C_N=7.0, C_T=3.0).stiffness(1.0, 0.5) == (7.0, 3.0)
+
+
+def test_missing_or_invalid_file(tmp_path):
+    with pytest.raises(CaseError, match="built-in cases"):
+        load_case(tmp_path / "nope.toml")
+    with pytest.raises(CaseError, match="built-in cases"):
+        builtin_case_text("no-such-case-xyz")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[mesh]\nsize = = 1\n")
+    with pytest.raises(CaseError, match=r"^[^\n]*bad\.toml[^\n]*line 2"):
+        load_case(bad)
