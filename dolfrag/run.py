@@ -11,7 +11,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import __version__, bulk, loads, mesh, space as spaces, supports
-from dolfrag.config import Case, load_case
+from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
@@ -26,8 +26,12 @@ ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "W_external_J", "b
 def setup(case, comm):
     """Mesh, space, operators and the integrator for ``case``. Collective."""
     domain = mesh.build(case.geometry, case.mesh.size, comm)
-    for name in (case.load.boundary, *case.supports.rollers, *case.supports.clamped):
-        domain.boundary_tag(name)
+    named = [("load.boundary", case.load.boundary)] + [
+        (f"supports.{kind}", name) for kind in ("rollers", "clamped") for name in getattr(case.supports, kind)]
+    for key, name in named:
+        if name not in domain.boundaries:
+            raise CaseError(f"{key} = {name!r}: not a boundary of the mesh; boundaries: "
+                            f"{', '.join(sorted(domain.boundaries)) or 'none'}")
     space = spaces.create(domain)
     bulk_ops = bulk.assemble(space, domain, case)
     links = link_table.build(space)

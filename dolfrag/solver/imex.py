@@ -58,7 +58,8 @@ class Imex:
         self.u, self.v, self.f, self.dv = (compat.Function(V) for _ in range(4))
         self.u.name, self.v.name = "displacement", "velocity"
         self.owned = slice(0, space.n_owned_dofs * space.gdim)
-        self.active = np.union1d(np.arange(self.owned.stop), stars.comps)
+        # updated here: owned components, plus the ghost ones of this rank's stars
+        self.star_ghosts = stars.comps[stars.comps >= self.owned.stop]
         g = load.x.array[self.owned]
         self.loaded = np.flatnonzero(g)
         self.g_load = g[self.loaded]
@@ -73,10 +74,9 @@ class Imex:
         t_{n+1/2} (collective), else None."""
         h, u, v, f, dv = self.h, self.u.x.array, self.v.x.array, self.f.x.array, self.dv.x.array
         own = self.owned
-        self.bulk.K.mult(self.u.vector, self.f.vector)
-        Ku = f[own].copy() if energies else None
+        Ku = self.bulk.K_cells @ u[own]
         p = float(self.pressure(self.t))
-        f[own] *= -1.0
+        np.negative(Ku, out=f[own])
         f[own][self.loaded] += p * self.g_load
         compat.scatter_forward(self.f)
 
@@ -91,8 +91,11 @@ class Imex:
         dv[self.stars.comps] = mine
 
         v_old_loaded = v[own][self.loaded]
-        v[self.active] += dv[self.active]
-        u[self.active] += h * v[self.active]
+        v[own] += dv[own]
+        u[own] += h * v[own]
+        ghosts = self.star_ghosts
+        v[ghosts] += dv[ghosts]
+        u[ghosts] += h * v[ghosts]
         self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
         g_old, self._g = self._g, self.jump(u)
         self.t += h

@@ -1,0 +1,74 @@
+"""Cost of the `imex` step: ns per element-step and peak memory.
+
+    python benchmarks/step_cost.py [--cells 10000 100000] [--steps 200]
+    mpirun -n 2 python benchmarks/step_cost.py
+
+A 2D plane-strain bar (the sound-bar case, refined to about the requested number of
+triangles) under its pulse. Times only the time loop (setup excluded) and, for the
+breakdown, each part of the step repeated alone. Prints one table on rank 0.
+"""
+import argparse
+import resource
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
+from dolfrag.config import load_case
+from dolfrag.run import setup
+
+# gmsh's frontal mesher puts about 2.33 A / h^2 triangles in an area A (measured).
+TRIANGLES_PER_AREA_H2 = 2.33
+
+
+def timed(fn, repeat, comm):
+    comm.barrier()
+    start = time.perf_counter()
+    for _ in range(repeat):
+        fn()
+    comm.barrier()
+    return (time.perf_counter() - start) / repeat
+
+
+def measure(cells, steps, comm):
+    case = load_case("sound-bar")
+    area = case.geometry.length * case.geometry.width
+    size = np.sqrt(TRIANGLES_PER_AREA_H2 * area / cells)
+    case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0"])
+    domain, space, links, integ, _, _ = setup(case, comm)
+    n_cells = space.mesh.topology.index_map(2).size_global
+    integ.step()  # warm-up
+    per_step = timed(integ.step, steps, comm)
+    u = integ.u.x.array
+    g_N, g_T = integ.jump.local(integ.jump(u))
+    parts = {
+        "bulk K u": lambda: integ.bulk.K_cells @ u[integ.owned],
+        "ghost update": lambda: integ.f.x.scatter_forward(),
+        "interface force": lambda: integ.jump.force(*integ.jump.local(integ.jump(u))[:2]),
+        "star solve": lambda: integ.stars.solve(integ.f.x.array, integ.dv.x.array),
+    }
+    breakdown = {k: timed(fn, steps, comm) for k, fn in parts.items()}
+    rss = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024
+    return n_cells, per_step, breakdown, rss
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cells", type=int, nargs="+", default=[10_000, 100_000])
+    parser.add_argument("--steps", type=int, default=200)
+    args = parser.parse_args()
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        print(f"imex step, 2D plane strain, linear interface springs, {comm.size} rank(s)")
+        print(f"{'cells':>8s} {'ms/step':>8s} {'ns/elem-step':>13s} {'peak MB/rank':>13s}  "
+              "breakdown ns/elem-step (wall)")
+    for target in args.cells:
+        n_cells, per_step, breakdown, rss = measure(target, args.steps, comm)
+        if comm.rank == 0:
+            parts = ", ".join(f"{k} {1e9 * t / n_cells:.0f}" for k, t in breakdown.items())
+            print(f"{n_cells:8d} {1e3 * per_step:8.2f} {1e9 * per_step / n_cells:13.0f} {rss:13.0f}  {parts}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,90 @@
+"""Alart-Curnier projections for unilateral contact with Coulomb friction, vectorised over
+links, for a semi-smooth Newton. Pure numpy: no PETSc, no dolfinx, no MPI.
+
+Sign convention (interface/links.py): g = u_B - u_A, n from A to B, g_N > 0 in opening.
+The reactions are the force per unit area that A exerts on B through the contact:
+r_N >= 0 pushes the faces apart (compression), r_T opposes the slip of B relative to A.
+In the tension-positive traction of interface/laws.py they enter with a minus sign:
+t_N = r_N(cohesive) - r_N, t_T = r_T(cohesive) - r_T.
+"""
+from typing import NamedTuple
+
+import numpy as np
+
+
+class ProjectionJacobian(NamedTuple):
+    """Generalised Jacobian of (phi_N, phi_T); n links, m = d - 1.
+
+    dN_drN (n,) -, dN_drT (n, m) -, dN_dgN (n,) Pa/m, dN_dgT (n, m) Pa/m,
+    dT_drN (n, m) -, dT_drT (n, m, m) -, dT_dgN (n, m) Pa/m, dT_dgT (n, m, m) Pa/m
+    (Pa s/m for dT_dgT when g_T_rate is a rate); dT_drT[i, a, b] = d phi_T[i, a] / d r_T[i, b].
+    """
+    dN_drN: np.ndarray
+    dN_drT: np.ndarray
+    dN_dgN: np.ndarray
+    dN_dgT: np.ndarray
+    dT_drN: np.ndarray
+    dT_drT: np.ndarray
+    dT_dgN: np.ndarray
+    dT_dgT: np.ndarray
+
+
+OPEN, STICK, SLIP = 0, 1, 2
+
+
+def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift):
+    """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; PHYSICS.md §1).
+
+    symbol    meaning                                            unit        shape
+    r_N       normal reaction, >= 0 in compression               Pa          (n,)
+    r_T       tangential reaction on B                           Pa          (n, d-1)
+    g_N       normal gap, > 0 in opening                         m           (n,)
+    g_T_rate  tangential slip increment over the step            m           (n, d-1)
+              (or slip rate, m/s: then rho_T is in Pa s/m)
+    rho_N     normal augmentation                                Pa/m        scalar or (n,)
+    rho_T     tangential augmentation                            Pa/m        scalar or (n,)
+    mu        friction coefficient (mu (1 - beta) for RCCM)      -           scalar or (n,)
+    shift     cohesion: R_c for an intact threshold link, else 0 Pa          scalar or (n,)
+
+    Shifted Signorini on r~_N = r_N + shift:  r~_N >= 0, g_N >= 0, r~_N g_N = 0;
+    Coulomb on the shifted cone:  |r_T| <= mu r~_N, and r_T = -mu r~_N v/|v| when slipping.
+    phi_N = r~_N - proj_R+(r~_N - rho_N g_N)  =  r_N - max(-shift, r_N - rho_N g_N)
+    phi_T = r_T - proj_D(r_T - rho_T g_T_rate),  D = disc of radius mu max(r~_N, 0)
+    Both vanish exactly when the conditions hold. rho only scales the Newton steps: a value
+    of the order of the interface stiffness (C_N or E/h) balances reactions and gaps.
+    Branches: contact where r~_N - rho_N g_N >= 0 (else open); with y = r_T - rho_T
+    g_T_rate, stick where |y| <= radius and radius > 0, slip where |y| > radius > 0, and
+    phi_T = r_T where the radius is 0. mu is treated as fixed (no derivative).
+
+    Returns phi_N (n,) Pa, phi_T (n, d-1) Pa, a ProjectionJacobian, and status (n,) int:
+    0 = open (OPEN), 1 = stick (STICK), 2 = slip (SLIP); a link is open when the normal
+    branch is.
+    """
+    r_N, r_T, g_N, v = (np.asarray(a, dtype=float) for a in (r_N, r_T, g_N, g_T_rate))
+    n, m = r_T.shape
+    rho_N = np.broadcast_to(np.asarray(rho_N, dtype=float), (n,))
+    rho_T = np.asarray(rho_T, dtype=float)[..., None]
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
+    r_shift = r_N + shift
+    contact = r_shift - rho_N * g_N >= 0
+    phi_N = r_shift - np.maximum(0.0, r_shift - rho_N * g_N)
+    radius = mu * np.maximum(r_shift, 0.0)
+    y = r_T - rho_T * v
+    norm_y = np.linalg.norm(y, axis=-1)
+    stick = (norm_y <= radius) & (radius > 0)
+    slip = (norm_y > radius) & (radius > 0)
+    e = np.divide(y, norm_y[:, None], out=np.zeros_like(y), where=slip[:, None])
+    scale = np.divide(radius, norm_y, out=np.zeros(n), where=slip)
+    phi_T = np.where(stick[:, None], rho_T * v, r_T - scale[:, None] * y)
+
+    eye = np.eye(m)
+    # slip: d(y/|y|)/dy = (I - e e^T) / |y|
+    P = scale[:, None, None] * (eye - e[:, :, None] * e[:, None, :])
+    dT_drT = np.where(stick[:, None, None], 0.0, eye - P)
+    dT_dgT = rho_T[..., None] * np.where(stick[:, None, None], eye, P)
+    dT_drN = -(mu * (slip & (r_shift > 0)))[:, None] * e
+    zeros = np.zeros((n, m))
+    jac = ProjectionJacobian(np.where(contact, 0.0, 1.0), zeros, np.where(contact, rho_N, 0.0),
+                             zeros, dT_drN, dT_drT, zeros, dT_dgT)
+    status = np.where(contact, np.where(stick, STICK, SLIP), OPEN)
+    return phi_N, phi_T, jac, status
