@@ -6,7 +6,7 @@ import pytest
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from conftest import box, rectangle
+from conftest import ROOT, box, rectangle
 from dolfrag import bulk, mesh, space as spaces
 
 E, NU, RHO = 35e9, 0.2, 2350.0
@@ -89,18 +89,8 @@ def test_lumped_mass_is_rho_times_volume(setup):
     assert m[:, 0].sum() == pytest.approx(RHO * volume, rel=1e-12)
 
 
-def test_two_materials_from_an_imported_geo_file(tmp_path):
-    geo = tmp_path / "two.geo"
-    geo.write_text("""
-Point(1) = {0, 0, 0}; Point(2) = {0.1, 0, 0}; Point(3) = {0.3, 0, 0};
-Point(4) = {0.3, 0.05, 0}; Point(5) = {0.1, 0.05, 0}; Point(6) = {0, 0.05, 0};
-Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 5}; Line(5) = {5, 6};
-Line(6) = {6, 1}; Line(7) = {2, 5};
-Curve Loop(1) = {1, 7, 5, 6}; Plane Surface(1) = {1};
-Curve Loop(2) = {2, 3, 4, -7}; Plane Surface(2) = {2};
-Physical Surface("concrete") = {1}; Physical Surface("steel") = {2};
-Physical Curve("left") = {6}; Physical Curve("right") = {3};
-""")
+def test_two_materials_from_an_imported_geo_file():
+    geo = ROOT / "meshes" / "bar-two-materials.geo"
     geometry = SimpleNamespace(kind="file", tdim=2, file=str(geo))
     domain = mesh.build(geometry, 0.01, MPI.COMM_SELF)
     assert set(domain.materials) == {"concrete", "steel"}

@@ -64,13 +64,20 @@ def test_energy_balance_error_below_one_percent_of_work(serial_run):
     assert (out / "fields.pvd").exists() and (out / "figures" / "velocity.png").exists()
 
 
+BOX_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--set", "mesh.size=0.008",
+          "--set", "time.end=3e-5"]
+
+
 @pytest.mark.mpi
-def test_one_and_two_ranks_give_the_same_history(serial_run, tmp_path):
-    _, _, out = serial_run
-    mpirun(["-m", "dolfrag.cli", "run", "sound-bar", "--out", tmp_path, "--quiet", *QUIET], n=2)
-    one, two = history(out), history(tmp_path)
+@pytest.mark.parametrize("dim", ["2d", "3d"])
+def test_one_and_two_ranks_give_the_same_history(dim, tmp_path):
+    args = ["-m", "dolfrag.cli", "run", "sound-bar", "--quiet", *QUIET, *(BOX_3D if dim == "3d" else [])]
+    mpirun([*args, "--out", tmp_path / "one"], n=1)
+    mpirun([*args, "--out", tmp_path / "two"], n=2)
+    one, two = history(tmp_path / "one"), history(tmp_path / "two")
     assert one.dtype.names == two.dtype.names
     work = one["W_external_J"].max()
+    assert np.abs(one["balance_error_J"]).max() < 1e-10 * work  # exact discrete balance, 2D and 3D
     for name in one.dtype.names:
         # energies (the balance error is itself round-off) on the scale of the work
         scale = work if name.endswith("_J") else np.abs(one[name]).max() or 1.0

@@ -312,18 +312,20 @@ def threshold_dissipation(broken, R_c, W_eth):
     return np.where(broken, np.asarray(R_c, dtype=float) * W_eth, 0.0)
 
 
-def drive(law_step, g_N, g_T, state):
+def drive(law_step, g_N, g_T, state, *per_step):
     """0D driver: impose a jump history on n links, no mesh (STYLE.md Part B item 4).
 
-    law_step(g_N (n,), g_T (n, d-1), state (n,)) -> tuple whose first two entries are
-    r_N (n,), r_T (n, d-1) and whose last entry is the new state (n,), e.g.
+    law_step(g_N (n,), g_T (n, d-1), state (n,), *extra) -> tuple whose first two entries
+    are r_N (n,), r_T (n, d-1) and whose last entry is the new state (n,), e.g.
     ``lambda gN, gT, beta: rccm(gN, gT, beta, C_N, C_T, w)``.
-    g_N (n_steps, n) m, g_T (n_steps, n, d-1) m, state (n,) initial state.
+    g_N (n_steps, n) m, g_T (n_steps, n, d-1) m, state (n,) initial state; per_step are
+    optional (n_steps, ...) histories whose k-th entries are passed as extra (e.g. the
+    time step h of the viscous rccm).
     Returns r_N (n_steps, n), r_T (n_steps, n, d-1) Pa, state (n_steps, n) after each step.
     """
     r_N, r_T, states = [], [], []
-    for gn, gt in zip(np.asarray(g_N, dtype=float), np.asarray(g_T, dtype=float)):
-        out = law_step(gn, gt, state)
+    for k, (gn, gt) in enumerate(zip(np.asarray(g_N, dtype=float), np.asarray(g_T, dtype=float))):
+        out = law_step(gn, gt, state, *(extra[k] for extra in per_step))
         state = out[-1]
         r_N.append(out[0])
         r_T.append(out[1])

@@ -1,4 +1,5 @@
 """Figures (PNG, off-screen pyvista). Without pyvista they are skipped with one line."""
+import os
 import sys
 
 import numpy as np
@@ -35,6 +36,8 @@ def broken_mesh_png(space, u, field, path, label, scale=None):
     except ImportError:
         print(f"pyvista is not installed: {path} not drawn (pip install pyvista)", file=sys.stderr)
         return
+    # Off-screen through EGL directly: VTK would try an X server first and warn.
+    os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     points, values = data
     nv = d + 1
     points = np.column_stack([points, np.zeros((len(points), 3 - d))])
