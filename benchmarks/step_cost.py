@@ -16,7 +16,7 @@ from mpi4py import MPI
 
 import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
 from dolfrag.config import load_case
-from dolfrag.run import setup
+from dolfrag.runner import setup
 
 # gmsh's frontal mesher puts about 2.33 A / h^2 triangles in an area A (measured).
 TRIANGLES_PER_AREA_H2 = 2.33

@@ -25,5 +25,5 @@ __version__ = "0.1.0"
 
 def run(case, out, quiet=False, comm=None):
     """Run a case (config.Case, a path, or a built-in name) and write its outputs into ``out``."""
-    from dolfrag.run import run as _run
+    from dolfrag.runner import run as _run
     return _run(case, out, quiet=quiet, comm=comm)

@@ -8,6 +8,7 @@ and one line naming the key, the value and what is allowed.
 """
 import argparse
 import sys
+import traceback
 
 from mpi4py import MPI
 
@@ -38,12 +39,18 @@ def main(argv=None):
                 print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
             return 0
         case = load_case(args.case, args.set)
-        from dolfrag.run import run
+        from dolfrag.runner import run
         summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
     except CaseError as err:
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)
         return 2
+    except Exception:
+        if comm.size == 1:
+            raise
+        # one rank failing alone would leave the others waiting in a collective forever
+        traceback.print_exc()
+        comm.Abort(1)
     if comm.rank == 0 and not args.quiet:
         print(f"{case.name}: {summary['steps']} steps, {summary['cells']} cells, {summary['links']} links, "
               f"{summary['wall_time_s']:.1f} s on {summary['ranks']} rank(s); "

@@ -56,7 +56,7 @@ import numpy as np
 
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-LAWS = ("elastic",)
+LAWS = ("elastic", "rccm")
 SIGNALS = ("triangular", "table")
 SCHEMES = ("imex",)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
@@ -181,6 +181,7 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
 _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several fields
 _IMPORTED = ("kind", "file")
 _TRIANGLE = ("signal", "triangular")
+_RCCM = ("law", "rccm")
 
 
 @dataclass(frozen=True)
@@ -229,6 +230,15 @@ class Interface:
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
     C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
     stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
+    # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both
+    sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=_RCCM)
+    w: float | None = _f("float", None, bounds="> 0", unit="J/m^2", when=_RCCM)
+    b: float | None = _f("float", 0.0, bounds=">= 0", unit="J s/m^2", when=_RCCM)  # 0: rate-independent
+    mu: float | None = _f("float", 0.0, bounds=">= 0", when=_RCCM)  # friction, mu (1 - beta) acts
+
+    def adhesion_energy(self, C_N: float) -> float:
+        """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (PHYSICS.md §1)."""
+        return self.w if self.w is not None else self.sigma_c**2 / C_N
 
     def stiffness(self, E: float, h: float) -> tuple[float, float]:
         """(C_N, C_T) [Pa/m]: the given values, else stiffness_ratio * E / h."""
@@ -350,6 +360,10 @@ def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
 def _check(case: Case) -> None:
     """Rules linking several keys or sections."""
     load, sup, known = case.load, case.supports, case.geometry.boundaries
+    law = case.interface
+    if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
+        raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
+                        "rccm needs exactly one of them (Pa, J/m^2)")
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")

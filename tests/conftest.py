@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MPI_RANKS = 2  # these machines have 2 cores
 
 
-def mpirun(args, n=MPI_RANKS, timeout=600):
+def mpirun(args, n=MPI_RANKS, timeout=300):
     """Run ``python args...`` under mpirun -n n; returns the CompletedProcess (checked)."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OPENBLAS_NUM_THREADS="1")

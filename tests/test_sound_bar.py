@@ -68,10 +68,14 @@ BOX_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--s
           "--set", "time.end=3e-5"]
 
 
+INTACT_RCCM = ["--set", "interface.law=rccm", "--set", "interface.sigma_c=1e9", "--set", "mesh.size=0.004"]
+VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM}
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("dim", ["2d", "3d"])
-def test_one_and_two_ranks_give_the_same_history(dim, tmp_path):
-    args = ["-m", "dolfrag.cli", "run", "sound-bar", "--quiet", *QUIET, *(BOX_3D if dim == "3d" else [])]
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
+    args = ["-m", "dolfrag.cli", "run", "sound-bar", "--quiet", *QUIET, *VARIANTS[variant]]
     mpirun([*args, "--out", tmp_path / "one"], n=1)
     mpirun([*args, "--out", tmp_path / "two"], n=2)
     one, two = history(tmp_path / "one"), history(tmp_path / "two")
@@ -79,8 +83,11 @@ def test_one_and_two_ranks_give_the_same_history(dim, tmp_path):
     work = one["W_external_J"].max()
     assert np.abs(one["balance_error_J"]).max() < 1e-10 * work  # exact discrete balance, 2D and 3D
     for name in one.dtype.names:
+        if name.startswith("newton"):
+            continue  # solver diagnostics: iteration counts follow round-off, not physics
         # energies (the balance error is itself round-off) on the scale of the work
         scale = work if name.endswith("_J") else np.abs(one[name]).max() or 1.0
-        # direct solves, no iteration: ranks differ only in summation order (round-off);
-        # 1e-9 of the column's scale leaves 1e5 x margin over 273 steps of 1e-16 errors
+        # direct star solves (elastic) or star Newton stopped at a relative residual of
+        # 1e-10 (rccm): the same stars on both layouts, so ranks differ by round-off or
+        # the Newton tolerance; 1e-9 of the column's scale covers both
         assert np.allclose(one[name], two[name], rtol=0, atol=1e-9 * scale), name

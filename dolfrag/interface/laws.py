@@ -85,7 +85,8 @@ def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
     Peak sqrt(C_N w) at g_N = sqrt(w / C_N) (mode I), sqrt(C_T w) in mode II; work to
     separation w. The tangent includes dbeta/dg where damage grows:
     dbeta/dg = -(w / Y'^2) dY'/dg (b == 0), -(h beta / (b + h Y')) dY'/dg (b > 0).
-    Damage is driven by <g_N>+ and g_T only: compression does not damage.
+    Damage is driven by <g_N>+ and g_T only: compression does not damage. With b > 0
+    damage lags the jump: it keeps growing after the opening peaks, while beta Y' > w.
 
     Sign convention: g = u_B - u_A, n from A to B, tractions positive in tension.
     Returns r_N (n,), r_T (n, d-1) Pa, dr_N_dg_N, dr_T_dg_T, dr_N_dg_T, dr_T_dg_N (Pa/m,
@@ -93,6 +94,7 @@ def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
     """
     g_N, g_T, beta_n = (np.asarray(a, dtype=float) for a in (g_N, g_T, beta_n))
     Y, dY_dg_N, dY_dg_T = _driving_energy(g_N, g_T, C_N, C_T)
+    beta_n = np.broadcast_to(beta_n, Y.shape)
     w = np.broadcast_to(np.asarray(w, dtype=float), Y.shape)
     b = np.broadcast_to(np.asarray(b, dtype=float), Y.shape)
     viscous = b > 0

@@ -14,8 +14,18 @@ import numpy as np
 
 @dataclass
 class StarGroup:
-    """Stars with k copies: comps (n_s, k*gdim) flat dof components, inv the inverse blocks."""
+    """Stars with k copies.
+
+    comps (n_s, k*gdim): flat dof components of each star.
+    links (n_s, L): the star's links (indices into the link table), padded with 0 where
+    ``valid`` (n_s, L) is False; slot_A, slot_B (n_s, L): the copies each link joins.
+    inv: the inverses of the linear step blocks (see Stars.factorise).
+    """
     comps: np.ndarray
+    links: np.ndarray = None
+    valid: np.ndarray = None
+    slot_A: np.ndarray = None
+    slot_B: np.ndarray = None
     inv: np.ndarray = None
 
 
@@ -53,6 +63,30 @@ class Stars:
         assert np.array_equal(self._link_row, row_of[links.dof_B]), "a link leaves its star"
         self._fixed = np.zeros(n_dofs * d, dtype=bool)
         self._fixed[np.asarray(constrained, dtype=np.int64)] = True
+        for g, grp in enumerate(self.groups):
+            self._tabulate_links(grp, np.flatnonzero(self._link_group == g))
+
+    def _tabulate_links(self, grp, mine):
+        """Fill grp.links/valid/slot_A/slot_B: the links of each star, padded to the most."""
+        rows = self._link_row[mine]
+        order = np.argsort(rows, kind="stable")
+        mine, rows = mine[order], rows[order]
+        n_s = len(grp.comps)
+        count = np.bincount(rows, minlength=n_s)
+        column = np.arange(len(rows)) - np.repeat(np.cumsum(count) - count, count)
+        shape = (n_s, count.max(initial=0))
+        grp.links = np.zeros(shape, dtype=np.int64)
+        grp.valid = np.zeros(shape, dtype=bool)
+        grp.slot_A = np.zeros(shape, dtype=np.int64)
+        grp.slot_B = np.zeros(shape, dtype=np.int64)
+        grp.links[rows, column] = mine
+        grp.valid[rows, column] = True
+        grp.slot_A[rows, column] = self._slot_A[mine]
+        grp.slot_B[rows, column] = self._slot_B[mine]
+
+    def fixed(self, grp):
+        """(n_s, k*gdim) bool: the group's prescribed components."""
+        return self._fixed[grp.comps]
 
     def factorise(self, m, blocks, c):
         """Invert diag(m) + c * sum over links of [[D, -D], [-D, D]] for every star.

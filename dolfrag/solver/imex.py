@@ -1,25 +1,25 @@
 """The `imex` step: explicit bulk, implicit interface (shared/DESIGN.md §4).
 
-Central difference for the bulk with the lumped mass M, and the interface force
-taken at the average ``(u_{n+1} + 2 u_n + u_{n-1}) / 4``. In velocity increments
-``dv = v_{n+1/2} - v_{n-1/2}`` one step is
+Central difference for the bulk with the lumped mass M, and the interface springs taken
+at the average ``(u_{n+1} + 2 u_n + u_{n-1}) / 4``. In velocity increments
+``dv = v_{n+1/2} - v_{n-1/2}`` a step with linear springs K_i is
 
     (M + h^2/4 K_i) dv = h (f_ext(t_n) - K u_n - K_i u_n),     u_{n+1} = u_n + h v_{n+1/2},
 
-whose matrix is block-diagonal over vertex stars (interface/stars.py). The step is
-stable for h below the bulk limit alone, whatever the interface stiffness, and
-conserves exactly the discrete energy
+whose matrix is block-diagonal over vertex stars (interface/stars.py); with damage,
+contact and friction the same star split holds for the nonsmooth problem
+(solver/semismooth.py). The step is stable for h below the bulk limit alone, whatever the
+interface stiffness, and with linear springs it conserves exactly the discrete energy
 
-    E_{n+1/2} = 1/2 v_{n+1/2}.M v_{n+1/2} + 1/2 u_{n+1}.K u_n + 1/2 gbar.K_i gbar,
-    gbar = (u_n + u_{n+1}) / 2,
+    E_{n+1/2} = 1/2 v_{n+1/2}.M v_{n+1/2} + 1/2 u_{n+1}.K u_n + psi((g_n + g_{n+1}) / 2)
 
 against the work W_{n+1/2} = sum_k f_ext(t_k).(u_{k+1} - u_{k-1}) / 2. Those are the
-energies this module reports, so the balance error measures the code, not the
-time discretisation.
+energies reported (plus the energy released by damage), so the balance error measures the
+code and the nonsmooth events, not the time discretisation of the elastic part.
 
-Parallel data flow per step: K u on owned rows, one forward ghost update of the
-force, the star solves of owned vertices (no communication), one reverse update of
-the velocity increments to their owners.
+Parallel data flow per step: K u on owned cells, one forward ghost update of the force,
+the star solves of owned vertices (no communication), one reverse update of the velocity
+increments to their owners.
 """
 from dataclasses import dataclass
 
@@ -32,34 +32,57 @@ from dolfrag.interface import laws
 
 @dataclass
 class Energies:
-    """Global energies (J, or J/m in 2D) at t_{n+1/2}; collective to compute."""
+    """Global energies (J, or J/m in 2D) at t_{n+1/2}, and the broken-link count."""
     kinetic: float
     bulk: float
     interface: float
+    damage: float
+    contact: float
     external_work: float
+    broken_links: int
 
     @property
     def balance_error(self):
-        return self.kinetic + self.bulk + self.interface - self.external_work
+        return self.kinetic + self.bulk + self.interface + self.damage + self.contact - self.external_work
+
+
+class ElasticSprings:
+    """The linear step: star blocks M + h^2/4 K_i inverted once."""
+
+    def __init__(self, stars, jump, model, m, h):
+        self.stars, self.jump, self.model, self.h = stars, jump, model, h
+        stars.factorise(m, jump.tangent_blocks(model.C_N, model.C_T), h * h / 4)
+
+    contact_dissipated = 0.0  # no contact: the springs act in compression too
+
+    def solve(self, f, g_n, v, out):
+        r_N, r_T, _, _ = laws.elastic(*self.jump.local(g_n), self.model.C_N, self.model.C_T)
+        self.stars.solve(self.h * (f - self.jump.force(r_N, r_T)), out)
+
+    def account(self, g_before, g_after):
+        pass
 
 
 class Imex:
-    """Explicit-implicit integrator with linear interface springs C_N, C_T (Pa/m).
+    """Explicit-implicit integrator.
 
-    space, bulk, jump, stars: from space.py, bulk.py, interface/. load: Function of
-    nodal forces per pascal; pressure: p(t) in Pa. h: time step (s).
+    space, bulk, jump: from space.py, bulk.py, interface/jumps.py; step: the interface
+    step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
+    nodal forces per pascal; pressure: p(t) in Pa; h: time step (s).
     """
 
-    def __init__(self, space, bulk, jump, stars, C_N, C_T, load, pressure, h):
-        self.space, self.bulk, self.jump, self.stars = space, bulk, jump, stars
-        self.C_N, self.C_T = C_N, C_T
+    def __init__(self, space, bulk, jump, step, load, pressure, h):
+        self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
+        self.model = step.model
         self.pressure, self.h = pressure, h
         V = space.V
         self.u, self.v, self.f, self.dv = (compat.Function(V) for _ in range(4))
         self.u.name, self.v.name = "displacement", "velocity"
         self.owned = slice(0, space.n_owned_dofs * space.gdim)
+        comps = step.stars.comps
+        self.star_comps = comps
         # updated here: owned components, plus the ghost ones of this rank's stars
-        self.star_ghosts = stars.comps[stars.comps >= self.owned.stop]
+        self.star_ghosts = comps[comps >= self.owned.stop]
         g = load.x.array[self.owned]
         self.loaded = np.flatnonzero(g)
         self.g_load = g[self.loaded]
@@ -67,7 +90,7 @@ class Imex:
         self.t, self.n = 0.0, 0
         self.work = 0.0
         self._g = jump(self.u.x.array)
-        stars.factorise(self.m, jump.tangent_blocks(C_N, C_T), h * h / 4)
+        self._g_before = self._g.copy()  # g_{n-1}
 
     def step(self, energies=False):
         """Advance from t_n to t_{n+1}. With ``energies``, return the Energies at
@@ -80,15 +103,11 @@ class Imex:
         f[own][self.loaded] += p * self.g_load
         compat.scatter_forward(self.f)
 
-        g_N, g_T = self.jump.local(self._g)
-        r_N, r_T, _, _ = laws.elastic(g_N, g_T, self.C_N, self.C_T)
-        rhs = h * (f - self.jump.force(r_N, r_T))
-
         dv[:] = 0.0
-        self.stars.solve(rhs, dv)
-        mine = dv[self.stars.comps]
+        self.interface.solve(f, self._g, v, dv)
+        mine = dv[self.star_comps]
         compat.scatter_reverse_add(self.dv)
-        dv[self.stars.comps] = mine
+        dv[self.star_comps] = mine
 
         v_old_loaded = v[own][self.loaded]
         v[own] += dv[own]
@@ -98,6 +117,8 @@ class Imex:
         u[ghosts] += h * v[ghosts]
         self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
         g_old, self._g = self._g, self.jump(u)
+        self.interface.account(self._g_before, self._g)
+        self._g_before = g_old
         self.t += h
         self.n += 1
         if energies:
@@ -107,8 +128,10 @@ class Imex:
     def _energies(self, Ku, g_mid):
         own = self.owned
         v, u = self.v.x.array[own], self.u.x.array[own]
-        g_N, g_T = self.jump.local(g_mid)
+        weight = self.jump.links.weight
         local = np.array([0.5 * self.m[own] @ v**2, 0.5 * u @ Ku,
-                          self.jump.links.weight @ laws.elastic_energy(g_N, g_T, self.C_N, self.C_T),
-                          self.work])
-        return Energies(*self.space.mesh.comm.allreduce(local, op=MPI.SUM))
+                          weight @ self.model.stored_energy(*self.jump.local(g_mid)),
+                          weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
+                          np.count_nonzero(self.model.broken())])
+        total = self.space.mesh.comm.allreduce(local, op=MPI.SUM)
+        return Energies(*total[:6], int(total[6]))

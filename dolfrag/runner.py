@@ -12,15 +12,28 @@ from mpi4py import MPI
 
 from dolfrag import __version__, bulk, loads, mesh, space as spaces, supports
 from dolfrag.config import Case, CaseError, load_case
-from dolfrag.interface import links as link_table
+from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.post.figures import broken_mesh_png
 from dolfrag.post.output import RunOutput
 from dolfrag.progress import Progress
-from dolfrag.solver.imex import Imex
+from dolfrag.solver.imex import ElasticSprings, Imex
+from dolfrag.solver.semismooth import StarNewton
 
-ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "W_external_J", "balance_error_J"]
+ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J",
+                  "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "external_work", "balance_error"]
+
+
+def interface_step(interface, E, size, stars, jump, m, h):
+    """The model of ``interface`` (config.Interface) and its star step solver."""
+    C_N, C_T = interface.stiffness(E, size)
+    n = len(jump.links)
+    if interface.law == "elastic":
+        return ElasticSprings(stars, jump, models.Elastic(n, C_N, C_T), m, h)
+    model = models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
+    return StarNewton(stars, jump, model, m, h)
 
 
 def setup(case, comm):
@@ -36,11 +49,12 @@ def setup(case, comm):
     bulk_ops = bulk.assemble(space, domain, case)
     links = link_table.build(space)
     stars = Stars(space, links, supports.constrained_components(space, domain, case.supports))
-    C_N, C_T = case.interface.stiffness(case.material.E, case.mesh.size)
     n_steps = math.ceil(case.time.end / (case.time.cfl * bulk_ops.dt_crit))
+    h = case.time.end / n_steps
+    jump = Jump(space, links)
+    step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
     load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-    integrator = Imex(space, bulk_ops, Jump(space, links), stars, C_N, C_T, load,
-                      loads.signal(case.load), case.time.end / n_steps)
+    integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h)
     return domain, space, links, integrator, n_steps, bulk_ops.dt_crit
 
 
@@ -65,7 +79,8 @@ def run(case, out, quiet=False, comm=None):
     wall_start = time.perf_counter()
     domain, space, links, integ, n_steps, dt_crit = setup(case, comm)
     probes = _probes(space, domain)
-    columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, *probes]
+    columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
+               "newton_unconverged", *probes]
     snapshots = set(np.round(np.linspace(0, n_steps, case.output.fields + 1)).astype(int)) \
         if case.output.fields else set()
     output = RunOutput(out, comm, columns, fields=bool(snapshots))
@@ -74,7 +89,8 @@ def run(case, out, quiet=False, comm=None):
                "cells": space.mesh.topology.index_map(space.mesh.topology.dim).size_global,
                "links": comm.allreduce(len(links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
                "steps": n_steps, "dt_s": integ.h, "dt_crit_s": dt_crit,
-               "interface_stiffness_Pa_m": {"C_N": integ.C_N, "C_T": integ.C_T}, "status": "running"}
+               "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
+               "status": "running"}
     max_error, max_work, energies = 0.0, 0.0, None
     try:
         if 0 in snapshots:
@@ -84,8 +100,10 @@ def run(case, out, quiet=False, comm=None):
             energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
             if energies is not None:
                 probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
-                output.row([k, t_n + integ.h / 2, integ.pressure(t_n), energies.kinetic, energies.bulk,
-                            energies.interface, energies.external_work, energies.balance_error,
+                newton = [comm.allreduce(getattr(integ.interface, "iterations", 0), op=MPI.MAX),
+                          comm.allreduce(getattr(integ.interface, "unconverged", 0), op=MPI.SUM)]
+                output.row([k, t_n + integ.h / 2, integ.pressure(t_n),
+                            *(getattr(energies, a) for a in ENERGY_FIELDS), energies.broken_links, *newton,
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])
                 max_error = max(max_error, abs(energies.balance_error))
                 max_work = max(max_work, abs(energies.external_work))
@@ -100,8 +118,8 @@ def run(case, out, quiet=False, comm=None):
         summary["steps_done"] = integ.n
         summary["wall_time_s"] = time.perf_counter() - wall_start
         if energies is not None:
-            summary["energies_J"] = {c: getattr(energies, a) for c, a in zip(
-                ENERGY_COLUMNS, ("kinetic", "bulk", "interface", "external_work", "balance_error"))}
+            summary["energies_J"] = {c: getattr(energies, a) for c, a in zip(ENERGY_COLUMNS, ENERGY_FIELDS)}
+            summary["broken_links"] = energies.broken_links
         summary["max_abs_balance_error_J"] = max_error
         summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
         output.summary(summary)

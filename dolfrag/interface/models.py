@@ -1,0 +1,80 @@
+"""Interface models: a law bound to its parameters and its per-link state.
+
+The laws themselves (interface/laws.py) are pure functions; a model holds what a run
+needs around one: parameters from the case, the state array (one entry per owned link),
+the friction coefficient, the energies, and the rule for "broken".
+"""
+from typing import NamedTuple
+
+import numpy as np
+
+from dolfrag.interface import laws
+
+# An RCCM link never reaches beta = 0 (the traction decays like w^2 / (C_N g^3)); it is
+# counted broken past 10 u0 (beta = 1/100, traction sigma_c / 1000), the criterion of
+# LMGC90's example scripts (PHYSICS.md §1).
+BROKEN_BETA = 1e-2
+
+
+class Cohesion(NamedTuple):
+    """Cohesive traction (Pa), its link-frame tangent (Pa/m) and the trial state."""
+    r_N: np.ndarray
+    r_T: np.ndarray
+    dr_N_dg_N: np.ndarray
+    dr_T_dg_T: np.ndarray
+    dr_N_dg_T: np.ndarray
+    dr_T_dg_N: np.ndarray
+    state: np.ndarray
+
+
+class Elastic:
+    """Linear springs C_N, C_T (Pa/m) in tension and compression; no state, never broken."""
+
+    def __init__(self, n_links, C_N, C_T):
+        self.C_N, self.C_T, self.n_links = C_N, C_T, n_links
+
+    def stored_energy(self, g_N, g_T):
+        return laws.elastic_energy(g_N, g_T, self.C_N, self.C_T)
+
+    def dissipated(self):
+        return np.zeros(self.n_links)
+
+    def broken(self):
+        return np.zeros(self.n_links, dtype=bool)
+
+
+class Rccm:
+    """RCCM damage (Raous-Cangemi-Cocu / Monerie) with unilateral contact and Coulomb
+    friction mu (1 - beta). State: beta (n_links,), 1 sound .. 0 broken.
+
+    C_N, C_T Pa/m; w J/m^2 (peak traction sqrt(C_N w)); b J s/m^2 (0: rate-independent);
+    mu -; h s (time step, for the viscous update).
+    """
+
+    def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None):
+        self.C_N, self.C_T, self.w, self.b, self.mu, self.h = C_N, C_T, w, b, mu, h
+        self.beta = np.ones(n_links)
+
+    def state_at(self, links):
+        return self.beta[links]
+
+    def friction(self, beta):
+        return laws.rccm_friction_coefficient(beta, self.mu)
+
+    def cohesion(self, g_N, g_T, beta_n):
+        return Cohesion(*laws.rccm(g_N, g_T, beta_n, self.C_N, self.C_T, self.w, self.b, self.h))
+
+    def store(self, links, state, valid):
+        """Accept the converged state of the links (n, L) where valid (n, L)."""
+        self.beta[links[valid]] = state[valid]
+
+    def stored_energy(self, g_N, g_T):
+        """Elastic energy density of every link (J/m^2), at link-frame jumps g_N, g_T."""
+        return laws.rccm_energy(g_N, g_T, self.beta, self.C_N, self.C_T)
+
+    def dissipated(self):
+        """Energy density released by damage so far (J/m^2), per link."""
+        return laws.rccm_dissipation(self.beta, self.w)
+
+    def broken(self):
+        return self.beta <= BROKEN_BETA

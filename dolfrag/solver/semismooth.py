@@ -1,0 +1,165 @@
+"""Semi-smooth Newton for the nonsmooth `imex` interface step, star by star (DESIGN.md §4).
+
+With lumped mass and nodal interface quadrature the implicit part of a step splits into
+one problem per vertex star. For the stars of one size, batched, the unknowns of a star
+are its velocity increments ``x`` (q = copies x gdim) and, per link, the contact
+reactions ``r = (r_N, r_T)`` in the link frame (r_N >= 0 pushes the faces apart):
+
+    R_m = m x - h f + h BR^T (weight (t_coh(gbar) - r)) = 0
+    phi(r, g_end, dg_T) = 0                     Alart-Curnier, interface/contact.py
+
+    gbar  = g_n + h/4 BR x            the cohesive springs at (u_{n+1} + 2 u_n + u_{n-1}) / 4,
+                                      which conserves energy while the law is elastic
+    g_end = g_n + h BR (v_- + x)      non-penetration and slip at the end of the step
+
+BR maps a star's components to the jumps of its links in each link's frame (normal first,
+then tangents); f = f_ext - K u_n. Damage follows the law at gbar within the iterations
+(its tangent includes dbeta/dg). Friction uses the law's coefficient at the start of the
+step (mu (1 - beta_n) for RCCM), so its derivative is not needed. Each star stops on its
+own; a star still unconverged after the cap is counted and reported.
+"""
+import numpy as np
+
+from dolfrag.interface.contact import contact_friction_projection
+
+
+class StarNewton:
+    """Nonsmooth step solver for the owned stars.
+
+    stars: interface/stars.Stars; links: the link table; model: an interface model
+    (interface/models.py) giving the cohesive law, its state and friction; m: flat lumped
+    mass of every local dof component (kg); h: time step (s).
+    """
+
+    def __init__(self, stars, jump, model, m, h, max_iterations=30, rtol=1e-10):
+        links = jump.links
+        self.stars, self.jump, self.model, self.h = stars, jump, model, h
+        self.max_iterations, self.rtol = max_iterations, rtol
+        d = stars.gdim
+        frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
+        self._frame = frame
+        self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
+        self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
+        self.iterations = 0
+        self.unconverged = 0
+        self._data = []
+        for grp in stars.groups:
+            n_s, q = grp.comps.shape
+            k, L = q // d, grp.links.shape[1]
+            s, l = np.nonzero(grp.valid)
+            R = frame[grp.links[s, l]]
+            BR = np.zeros((n_s, L, d, k, d))
+            BR[s, l, :, grp.slot_B[s, l], :] = R
+            BR[s, l, :, grp.slot_A[s, l], :] = -R
+            weight = np.where(grp.valid, links.weight[grp.links], 0.0)
+            m_star = m[grp.comps]
+            m_pair = 0.5 * (m_star.reshape(n_s, k, d)[s, grp.slot_A[s, l], 0]
+                            + m_star.reshape(n_s, k, d)[s, grp.slot_B[s, l], 0])
+            rho = np.ones((n_s, L))
+            rho[s, l] = m_pair / (h * h * weight[s, l])  # the step's own stiffness, Pa/m
+            self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, stars.fixed(grp)))
+
+    def solve(self, f, g_n, v, out):
+        """Velocity increments of every owned star into out[star comps].
+
+        f: flat f_ext - K u_n on local components (ghosts updated), N;
+        g_n (n_links, gdim): link jumps of u_n (m), global frame; v: flat v_{n-1/2} (m/s).
+        Updates the model's state (damage) and the contact reactions.
+        """
+        frame = self._frame
+        g_loc = np.einsum("lij,lj->li", frame, g_n)
+        dg_loc = self.h * np.einsum("lij,lj->li", frame, self.jump(v))
+        self.iterations = self.unconverged = 0
+        for grp, data in zip(self.stars.groups, self._data):
+            x = self._solve_group(grp, data, self.h * f[grp.comps], g_loc[grp.links], dg_loc[grp.links])
+            out[grp.comps] = x
+
+    def account(self, g_before, g_after):
+        """Add the energy the contact reactions of this step dissipated,
+        -sum weight r . (g_{n+1} - g_{n-1}) / 2 (its share of the discrete energy balance,
+        solver/imex.py), given the global-frame jumps g_{n-1} and g_{n+1} (n_links, gdim)."""
+        dg = np.einsum("lij,lj->li", self._frame, g_after - g_before)
+        self.contact_dissipated -= 0.5 * self.jump.links.weight @ np.sum(self.r * dg, axis=1)
+
+    def _solve_group(self, grp, data, rhs, g_n, dg_pred):
+        """Newton on the group's stars, each stopping on its own once its scaled residual
+        is below rtol; a star still above it after max_iterations is counted unconverged."""
+        BR_all, weight_all, m_all, rho_all, fixed_all = data
+        h, d = self.h, self.stars.gdim
+        n_s, q = rhs.shape
+        L = grp.links.shape[1]
+        x = np.zeros((n_s, q))
+        r = np.where(grp.valid[..., None], self.r[grp.links], 0.0)
+        state_n = self.model.state_at(grp.links)
+        mu = self.model.friction(state_n)
+        todo = np.arange(n_s)
+        for iteration in range(1, self.max_iterations + 1):
+            BR, w, m, rho, fixed = BR_all[todo], weight_all[todo], m_all[todo], rho_all[todo], fixed_all[todo]
+            valid = grp.valid[todo]
+            Bx = np.matmul(BR, x[todo][:, :, None])[:, :, 0].reshape(-1, L, d)
+            gbar = g_n[todo] + 0.25 * h * Bx
+            slip = dg_pred[todo] + h * Bx
+            g_end = g_n[todo] + slip
+            g_end[..., 0] = np.where(valid, g_end[..., 0], 1.0)  # padding: open, so r stays 0
+            law = self.model.cohesion(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1),
+                                      state_n[todo].ravel())
+            r_coh = np.concatenate([law.r_N[:, None], law.r_T], axis=1).reshape(-1, L, d)
+            rt = r[todo]
+            t = (r_coh - rt) * w[..., None]
+            R_m = m * x[todo] - rhs[todo] + h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
+            R_m[fixed] = 0.0
+            phi_N, phi_T, jac, _ = contact_friction_projection(
+                rt[..., 0].ravel(), rt[..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
+                slip[..., 1:].reshape(-1, d - 1), rho.ravel(), rho.ravel(), mu[todo].ravel(), 0.0)
+            phi = np.concatenate([phi_N[:, None], phi_T], axis=1).reshape(-1, L, d)
+            scale_m = np.maximum(np.abs(rhs[todo]).max(axis=1), np.abs(m * x[todo]).max(axis=1))
+            scale_c = np.abs(rt).max(axis=(1, 2)) + (rho * np.abs(g_end[..., 0]) * valid).max(axis=1)
+            done = (np.abs(R_m).max(axis=1) <= self.rtol * scale_m) & \
+                   (np.abs(phi).max(axis=(1, 2)) <= self.rtol * scale_c)
+            self.model.store(grp.links[todo][done], law.state.reshape(-1, L)[done], valid[done])
+            self.iterations = max(self.iterations, iteration)
+            if done.all():
+                break
+            keep = ~done
+            J = self._jacobian(BR[keep], w[keep], m[keep], fixed[keep], law, jac, keep, L)
+            R = np.concatenate([R_m[keep], phi[keep].reshape(-1, L * d)], axis=1)
+            delta = np.linalg.solve(J, -R[:, :, None])[:, :, 0]
+            todo = todo[keep]
+            x[todo] += delta[:, :q]
+            r[todo] += delta[:, q:].reshape(-1, L, d)
+        else:
+            self.unconverged += len(todo)
+            self.model.store(grp.links[todo], law.state.reshape(-1, L)[keep], grp.valid[todo])
+        self.r[grp.links[grp.valid]] = r[grp.valid]
+        return x
+
+    def _jacobian(self, BR, w, m, fixed, law, jac, keep, L):
+        """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``."""
+        h, d = self.h, self.stars.gdim
+        n, q = m.shape
+        N = q + L * d
+        pick = lambda a: a.reshape(-1, L, *a.shape[1:])[keep]  # noqa: E731
+        D = _blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
+        Jg = _blocks(pick(jac.dN_dgN), pick(jac.dN_dgT), pick(jac.dT_dgN), pick(jac.dT_dgT))
+        Jr = _blocks(pick(jac.dN_drN), pick(jac.dN_drT), pick(jac.dT_drN), pick(jac.dT_drT))
+        BR4 = BR.reshape(n, L, d, q)
+        J = np.zeros((n, N, N))
+        WDB = np.einsum("sl,slij,sljq->sliq", w, D, BR4).reshape(n, L * d, q)
+        J[:, :q, :q] = 0.25 * h * h * np.matmul(BR.transpose(0, 2, 1), WDB)
+        J[:, np.arange(q), np.arange(q)] += m
+        J[:, :q, q:] = -h * BR.transpose(0, 2, 1) * np.repeat(w, d, axis=1)[:, None, :]
+        J[:, q:, :q] = h * np.einsum("slij,sljq->sliq", Jg, BR4).reshape(n, L * d, q)
+        rows = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, :, None])
+        cols = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, None, :])
+        J[:, rows, cols] = Jr
+        J[:, :q, :][fixed] = 0.0
+        J[:, :, :q] *= ~fixed[:, None, :]
+        J[:, np.arange(q), np.arange(q)] += fixed
+        return J
+
+
+def _blocks(NN, NT, TN, TT):
+    """Link-frame d x d blocks [[NN, NT], [TN, TT]] from (n, L), (n, L, m), (n, L, m), (n, L, m, m)."""
+    top = np.concatenate([NN[..., None], NT], axis=-1)[..., None, :]
+    bottom = np.concatenate([TN[..., None], TT], axis=-1)
+    return np.concatenate([top, bottom], axis=-2)
