@@ -193,6 +193,8 @@ class Geometry:
     thickness: float | None = _f("float", bounds="> 0", unit="m", when=("kind", "box"))  # z > 0
     file: Path | None = _f("path", when=_IMPORTED, suffixes=(".geo", ".msh"))  # absolute Path
     dim: int | None = _f("int", 2, choices=(2, 3), when=_IMPORTED)      # 2 | 3, default 2
+    # rectangle meshed as a regular grid of squares cut in triangles (grid lines are facets)
+    structured: bool | None = _f("bool", False, when=("kind", "rectangle"))
 
     @property
     def boundaries(self) -> tuple[str, ...] | None:

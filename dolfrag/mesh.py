@@ -104,6 +104,12 @@ def _build_box(gmsh, geometry, size):
     _name_boundaries(gmsh, tdim, extent)
     gmsh.option.setNumber("Mesh.CharacteristicLengthMin", size)
     gmsh.option.setNumber("Mesh.CharacteristicLengthMax", size)
+    if tdim == 2 and geometry.structured:
+        for _, curve in gmsh.model.getEntities(1):
+            length = gmsh.model.occ.getMass(1, curve)
+            gmsh.model.mesh.setTransfiniteCurve(curve, max(1, round(length / size)) + 1)
+        for surface in body:
+            gmsh.model.mesh.setTransfiniteSurface(surface, "Alternate")
     gmsh.model.mesh.generate(tdim)
     return tdim
 

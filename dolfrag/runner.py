@@ -16,6 +16,7 @@ from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.post.figures import broken_mesh_png
+from dolfrag.post.fragments import fragments
 from dolfrag.post.output import RunOutput
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
@@ -124,6 +125,9 @@ def run(case, out, quiet=False, comm=None):
         summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
         output.summary(summary)
         output.close()
+    frags = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array)
+    summary["fragments"] = frags.to_dict()
+    output.summary(summary)
     if case.output.figures:
         broken_mesh_png(space, integ.u, integ.v, Path(out) / "figures" / "velocity.png",
                         "velocity magnitude (m/s)")

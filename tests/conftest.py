@@ -30,7 +30,7 @@ def dolfrag_cli(*args, cwd=ROOT):
 
 
 def rectangle(length=0.12, width=0.04):
-    return SimpleNamespace(kind="rectangle", tdim=2, length=length, width=width)
+    return SimpleNamespace(kind="rectangle", tdim=2, length=length, width=width, structured=False)
 
 
 def box(length=0.1, width=0.05, thickness=0.03):

@@ -72,3 +72,13 @@ def test_msh_file_import_keeps_physical_names(tmp_path):
     assert np.allclose(rim.sum(axis=0), 0.0, atol=1e-15)  # a closed contour: no resultant
     # virtual work of u = x: -int n.x ds = -2 pi R^2; the polygon (h = R/5) is within 1 %
     assert np.sum(rim * space.x) == pytest.approx(-2 * np.pi * 0.05**2, rel=0.01)
+
+
+def test_structured_rectangle_is_a_grid_of_split_squares():
+    geometry = rectangle(0.1, 0.02)
+    geometry.structured = True
+    domain = mesh.build(geometry, 0.005, MPI.COMM_SELF)
+    space = spaces.create(domain)
+    assert len(space.cell_dofs) == 2 * 20 * 4  # two triangles per 5 mm square
+    # every grid line x = i h is made of facets: vertex x-coordinates are multiples of h
+    assert np.allclose(np.round(space.x[:, 0] / 0.005), space.x[:, 0] / 0.005, atol=1e-9)

@@ -1,5 +1,7 @@
 """The nonsmooth imex step (solver/semismooth.py): RCCM cohesion, exact unilateral
 contact, energy bookkeeping, rank independence."""
+import json
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -43,12 +45,12 @@ def fragmenting_runs(tmp_path_factory):
     args = ["-m", "dolfrag.cli", "run", RCCM_BAR, "--quiet"]
     mpirun([*args, "--out", out / "one"], n=1)
     mpirun([*args, "--out", out / "two"], n=2)
-    return history(out / "one"), history(out / "two")
+    return [(history(out / r), json.loads((out / r / "summary.json").read_text())) for r in ("one", "two")]
 
 
 @pytest.mark.mpi
 def test_damage_closes_the_energy_balance_with_the_released_energy(fragmenting_runs):
-    one, _ = fragmenting_runs
+    (one, _), _ = fragmenting_runs
     work = one["W_external_J"].max()
     assert one["broken_links"].max() > 50 and one["D_damage_J"].max() > 0.01 * work
     # damage lagged by one step frees exactly 1/2 (beta_n^2 - beta^2) C |g_mid|^2 at the
@@ -58,9 +60,14 @@ def test_damage_closes_the_energy_balance_with_the_released_energy(fragmenting_r
 
 
 @pytest.mark.mpi
-def test_damage_run_gives_the_same_broken_links_on_one_and_two_ranks(fragmenting_runs):
-    one, two = fragmenting_runs
+def test_damage_run_gives_the_same_broken_links_and_fragments_on_one_and_two_ranks(fragmenting_runs):
+    (one, summary_one), (two, summary_two) = fragmenting_runs
     assert np.array_equal(one["broken_links"], two["broken_links"])
+    frags_one, frags_two = summary_one["fragments"], summary_two["fragments"]
+    assert frags_one["count"] > 1 and frags_one["count"] == frags_two["count"]
+    for key in ("mass", "centroid", "velocity"):
+        # same links broken, velocities to the Newton tolerance (1e-10 relative)
+        assert np.allclose(frags_one[key], frags_two[key], rtol=1e-8, atol=1e-12), key
     work = one["W_external_J"].max()
     for name in ("E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J"):
         # each star problem is monotone and solved to a relative residual of 1e-10 on

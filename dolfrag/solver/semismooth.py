@@ -92,6 +92,8 @@ class StarNewton:
         h, d = self.h, self.stars.gdim
         n_s, q = rhs.shape
         L = grp.links.shape[1]
+        if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
+            return np.where(fixed_all, 0.0, rhs / m_all)
         x = np.zeros((n_s, q))
         r = np.where(grp.valid[..., None], self.r[grp.links], 0.0)
         state_n = self.model.state_at(grp.links)
