@@ -47,6 +47,7 @@ class StarNewton:
         self.iterations = 0
         self.unconverged = 0
         self._data = []
+        self._cache = []
         for grp in stars.groups:
             n_s, q = grp.comps.shape
             k, L = q // d, grp.links.shape[1]
@@ -62,6 +63,8 @@ class StarNewton:
             rho = np.ones((n_s, L))
             rho[s, l] = m_pair / (h * h * weight[s, l])  # the step's own stiffness, Pa/m
             self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, stars.fixed(grp)))
+            # last Jacobian inverse of each star, reused while its damage does not change
+            self._cache.append((np.zeros((n_s, q + L * d, q + L * d)), np.zeros(n_s, dtype=bool)))
 
     def solve(self, f, g_n, v, out):
         """Velocity increments of every owned star into out[star comps].
@@ -74,8 +77,9 @@ class StarNewton:
         g_loc = np.einsum("lij,lj->li", frame, g_n)
         dg_loc = self.h * np.einsum("lij,lj->li", frame, self.jump(v))
         self.iterations = self.unconverged = 0
-        for grp, data in zip(self.stars.groups, self._data):
-            x = self._solve_group(grp, data, self.h * f[grp.comps], g_loc[grp.links], dg_loc[grp.links])
+        for grp, data, cache in zip(self.stars.groups, self._data, self._cache):
+            x = self._solve_group(grp, data, cache, self.h * f[grp.comps], g_loc[grp.links],
+                                  dg_loc[grp.links])
             out[grp.comps] = x
 
     def account(self, g_before, g_after):
@@ -85,10 +89,16 @@ class StarNewton:
         dg = np.einsum("lij,lj->li", self._frame, g_after - g_before)
         self.contact_dissipated -= 0.5 * self.jump.links.weight @ np.sum(self.r * dg, axis=1)
 
-    def _solve_group(self, grp, data, rhs, g_n, dg_pred):
+    def _solve_group(self, grp, data, cache, rhs, g_n, dg_pred):
         """Newton on the group's stars, each stopping on its own once its scaled residual
-        is below rtol; a star still above it after max_iterations is counted unconverged."""
+        is below rtol; a star still above it after max_iterations is counted unconverged.
+
+        With the damage lagged, a star's Jacobian depends only on its contact pattern and
+        beta_n: the first step of a star whose beta_n has not changed uses its last
+        Jacobian's inverse, which solves its piecewise-linear problem exactly when the
+        pattern has not changed either (the residual check decides)."""
         BR_all, weight_all, m_all, rho_all, fixed_all = data
+        inverse, cached = cache
         h, d = self.h, self.stars.gdim
         n_s, q = rhs.shape
         L = grp.links.shape[1]
@@ -129,10 +139,17 @@ class StarNewton:
             if done.all():
                 break
             keep = ~done
-            J = self._jacobian(BR[keep], w[keep], m[keep], fixed[keep], law, jac, keep, L)
             R = np.concatenate([R_m[keep], phi[keep].reshape(-1, L * d)], axis=1)
-            delta = np.linalg.solve(J, -R[:, :, None])[:, :, 0]
             todo = todo[keep]
+            reuse = cached[todo] if iteration == 1 else np.zeros(len(todo), dtype=bool)
+            fresh = ~reuse
+            if fresh.any():
+                new = keep.copy()
+                new[keep] = fresh
+                J = self._jacobian(BR[new], w[new], m[new], fixed[new], law, jac, new, L)
+                inverse[todo[fresh]] = np.linalg.inv(J)
+                cached[todo[fresh]] = True
+            delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
             x[todo] += delta[:, :q]
             r[todo] += delta[:, q:].reshape(-1, L, d)
         else:
@@ -140,6 +157,8 @@ class StarNewton:
             self.model.store(grp.links[todo], law.state.reshape(-1, L)[keep], grp.valid[todo],
                              g_mid[keep][..., 0], g_mid[keep][..., 1:])
         self.r[grp.links[grp.valid]] = r[grp.valid]
+        damaged = (self.model.state_at(grp.links) != state_n) & grp.valid
+        cached[damaged.any(axis=1)] = False
         return x
 
     def _jacobian(self, BR, w, m, fixed, law, jac, keep, L):
