@@ -10,7 +10,6 @@ import dolfinx
 import dolfinx.cpp
 import dolfinx.fem.petsc
 import dolfinx.io
-import dolfinx.plot
 from dolfinx.io import gmshio
 
 GhostMode = dolfinx.mesh.GhostMode
@@ -142,11 +141,6 @@ def scatter_forward(u):
 
 def scatter_reverse_add(u):
     u.x.scatter_reverse(dolfinx.la.ScatterMode.add)
-
-
-def vtk_mesh(V):
-    """(topology, cell types, points) of the broken (DG) mesh, local cells."""
-    return dolfinx.plot.create_vtk_mesh(V)
 
 
 def vtk_file(comm, path):
