@@ -97,6 +97,10 @@ def dg1_vector_space(msh):
 Function = dolfinx.fem.Function
 
 
+def dg1_scalar_space(msh):
+    return dolfinx.fem.FunctionSpace(msh, ("DG", 1))
+
+
 def dg0_space(msh):
     return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
 

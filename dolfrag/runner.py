@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, bulk, loads, mesh, space as spaces, supports
+from dolfrag import __version__, bulk, compat, loads, mesh, space as spaces, supports
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.post.figures import broken_mesh_png
 from dolfrag.post.fragments import fragments
-from dolfrag.post.output import RunOutput
+from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
 from dolfrag.solver.semismooth import StarNewton
@@ -85,6 +85,13 @@ def run(case, out, quiet=False, comm=None):
     snapshots = set(np.round(np.linspace(0, n_steps, case.output.fields + 1)).astype(int)) \
         if case.output.fields else set()
     output = RunOutput(out, comm, columns, fields=bool(snapshots))
+    damage = compat.Function(compat.dg1_scalar_space(space.mesh))
+    damage.name = "damage"
+
+    def write_fields(t):
+        dof_damage(space, links, integ.model.damage(), damage)
+        output.fields([integ.u, integ.v, damage], t)
+
     progress = Progress(n_steps, quiet=quiet, rank=comm.rank)
     summary = {"case": case.to_dict(), "version": __version__, "ranks": comm.size,
                "cells": space.mesh.topology.index_map(space.mesh.topology.dim).size_global,
@@ -95,7 +102,7 @@ def run(case, out, quiet=False, comm=None):
     max_error, max_work, energies = 0.0, 0.0, None
     try:
         if 0 in snapshots:
-            output.fields([integ.u, integ.v], 0.0)
+            write_fields(0.0)
         for k in range(1, n_steps + 1):
             t_n = integ.t
             energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
@@ -109,7 +116,7 @@ def run(case, out, quiet=False, comm=None):
                 max_error = max(max_error, abs(energies.balance_error))
                 max_work = max(max_work, abs(energies.external_work))
             if k in snapshots:
-                output.fields([integ.u, integ.v], integ.t)
+                write_fields(integ.t)
             progress.update(k)
         summary["status"] = "completed"
     except BaseException as err:
@@ -129,6 +136,9 @@ def run(case, out, quiet=False, comm=None):
     summary["fragments"] = frags.to_dict()
     output.summary(summary)
     if case.output.figures:
-        broken_mesh_png(space, integ.u, integ.v, Path(out) / "figures" / "velocity.png",
-                        "velocity magnitude (m/s)")
+        speed = np.linalg.norm(integ.v.x.array.reshape(-1, space.gdim), axis=1)
+        broken_mesh_png(space, integ.u, speed, Path(out) / "figures" / "velocity.png", "velocity magnitude (m/s)")
+        dof_damage(space, links, integ.model.damage(), damage)
+        broken_mesh_png(space, integ.u, damage.x.array, Path(out) / "figures" / "damage.png",
+                        "damage 1 - beta (-)")
     return summary

@@ -42,9 +42,14 @@ def history(path):
 @pytest.fixture(scope="module")
 def fragmenting_runs(tmp_path_factory):
     out = tmp_path_factory.mktemp("rccm-bar")
-    args = ["-m", "dolfrag.cli", "run", RCCM_BAR, "--quiet"]
+    # fields and figures on: the MPI output path (VTK, damage field, PNGs) runs too
+    args = ["-m", "dolfrag.cli", "run", RCCM_BAR, "--quiet", "--set", "output.fields=2",
+            "--set", "output.figures=true"]
     mpirun([*args, "--out", out / "one"], n=1)
     mpirun([*args, "--out", out / "two"], n=2)
+    for run in ("one", "two"):
+        assert {"fields.pvd", "figures"} <= {p.name for p in (out / run).iterdir()}
+        assert (out / run / "figures" / "damage.png").stat().st_size > 0
     return [(history(out / r), json.loads((out / r / "summary.json").read_text())) for r in ("one", "two")]
 
 
@@ -73,3 +78,20 @@ def test_damage_run_gives_the_same_broken_links_and_fragments_on_one_and_two_ran
         # each star problem is monotone and solved to a relative residual of 1e-10 on
         # both layouts: energies agree far below 1e-6 of the work
         assert np.allclose(one[name], two[name], rtol=0, atol=1e-6 * work), name
+
+
+def test_damage_field_is_the_largest_link_damage_at_each_dof():
+    from dolfrag import compat
+    from dolfrag.post.output import dof_damage
+    case = load_case(RCCM_BAR)
+    _, space, links, integ, _, _ = setup(case, MPI.COMM_SELF)
+    rng = np.random.default_rng(1)
+    integ.model.beta[:] = rng.uniform(0.0, 1.0, len(links))
+    field = compat.Function(compat.dg1_scalar_space(space.mesh))
+    dof_damage(space, links, integ.model.damage(), field)
+    expected = np.zeros(len(field.x.array))
+    for dofs in (links.dof_A, links.dof_B):  # reference: a plain loop-free max per dof
+        order = np.lexsort((1 - integ.model.beta, dofs))
+        last = np.r_[dofs[order][1:] != dofs[order][:-1], True]
+        expected[dofs[order][last]] = np.maximum(expected[dofs[order][last]], (1 - integ.model.beta)[order][last])
+    assert np.array_equal(field.x.array, expected)

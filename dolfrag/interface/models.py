@@ -42,6 +42,9 @@ class Elastic:
     def broken(self):
         return np.zeros(self.n_links, dtype=bool)
 
+    def damage(self):
+        return np.zeros(self.n_links)
+
 
 class Rccm:
     """RCCM damage (Raous-Cangemi-Cocu / Monerie) with unilateral contact and Coulomb
@@ -104,3 +107,7 @@ class Rccm:
 
     def broken(self):
         return self.beta <= BROKEN_BETA
+
+    def damage(self):
+        """1 - beta per link: 0 sound, 1 broken."""
+        return 1.0 - self.beta

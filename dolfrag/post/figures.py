@@ -17,9 +17,9 @@ def _gather_broken_mesh(space, displacement, values):
     return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
 
 
-def broken_mesh_png(space, u, field, path, label, scale=None):
-    """The broken (DG) mesh deformed by ``scale * u`` and coloured by the magnitude of
-    ``field`` (a Function, e.g. the velocity). When ``scale`` is None the largest
+def broken_mesh_png(space, u, values, path, label, scale=None):
+    """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
+    one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
     displacement is drawn as 2 % of the body size. Collective; rank 0 draws."""
     d = space.gdim
     comm = space.mesh.comm
@@ -27,8 +27,7 @@ def broken_mesh_png(space, u, field, path, label, scale=None):
     size = comm.allreduce(np.ptp(space.x, axis=0).max() if len(space.x) else 0.0, op=MPI.MAX)
     if scale is None:
         scale = 0.02 * size / umax if umax > 0 else 1.0
-    magnitude = np.linalg.norm(field.x.array.reshape(-1, d), axis=1)
-    data = _gather_broken_mesh(space, scale * u.x.array, magnitude)
+    data = _gather_broken_mesh(space, scale * u.x.array, values)
     if data is None:
         return
     try:

@@ -6,7 +6,24 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
+
 from dolfrag import compat
+
+
+def dof_damage(space, links, link_damage, out):
+    """Fill the scalar DG-P1 Function ``out`` with, at each dof, the largest damage
+    (1 - beta, 0 sound .. 1 broken) of the links at it: the cracks, drawn on the broken
+    mesh. Collective: a dof's links all sit on its vertex's owner, which sends the value."""
+    values = out.x.array
+    values[:] = 0.0
+    np.maximum.at(values, links.dof_A, link_damage)
+    np.maximum.at(values, links.dof_B, link_damage)
+    star = values.copy()
+    compat.scatter_reverse_add(out)  # one contribution per dof: its star's owner's
+    mine = star > 0
+    values[mine] = star[mine]
+    compat.scatter_forward(out)
 
 
 class RunOutput:
