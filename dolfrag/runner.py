@@ -108,8 +108,8 @@ def run(case, out, quiet=False, comm=None):
             energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
             if energies is not None:
                 probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
-                newton = [comm.allreduce(getattr(integ.interface, "iterations", 0), op=MPI.MAX),
-                          comm.allreduce(getattr(integ.interface, "unconverged", 0), op=MPI.SUM)]
+                newton = [comm.allreduce(integ.interface.iterations, op=MPI.MAX),
+                          comm.allreduce(integ.interface.unconverged, op=MPI.SUM)]
                 output.row([k, t_n + integ.h / 2, integ.pressure(t_n),
                             *(getattr(energies, a) for a in ENERGY_FIELDS), energies.broken_links, *newton,
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])

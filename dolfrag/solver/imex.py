@@ -54,6 +54,7 @@ class ElasticSprings:
         stars.factorise(m, jump.tangent_blocks(model.C_N, model.C_T), h * h / 4)
 
     contact_dissipated = 0.0  # no contact: the springs act in compression too
+    iterations = unconverged = 0  # a direct solve
 
     def solve(self, f, g_n, v, out):
         r_N, r_T, _, _ = laws.elastic(*self.jump.local(g_n), self.model.C_N, self.model.C_T)
