@@ -56,7 +56,7 @@ import numpy as np
 
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-LAWS = ("elastic", "rccm")
+LAWS = ("elastic", "rccm", "threshold", "linear_softening")
 SIGNALS = ("triangular", "table")
 SCHEMES = ("imex",)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
@@ -182,6 +182,8 @@ _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several f
 _IMPORTED = ("kind", "file")
 _TRIANGLE = ("signal", "triangular")
 _RCCM = ("law", "rccm")
+_STRENGTH = ("law", "rccm", "linear_softening")
+_FRICTIONAL = ("law", "rccm", "threshold", "linear_softening")
 
 
 @dataclass(frozen=True)
@@ -232,11 +234,18 @@ class Interface:
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
     C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
     stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
-    # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both
-    sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=_RCCM)
+    # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both;
+    # linear_softening: sigma_c (rigid up to it) and G_c
+    sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=_STRENGTH)
     w: float | None = _f("float", None, bounds="> 0", unit="J/m^2", when=_RCCM)
     b: float | None = _f("float", 0.0, bounds=">= 0", unit="J s/m^2", when=_RCCM)  # 0: rate-independent
-    mu: float | None = _f("float", 0.0, bounds=">= 0", when=_RCCM)  # friction, mu (1 - beta) acts
+    G_c: float | None = _f("float", bounds="> 0", unit="J/m^2", when=("law", "linear_softening"))
+    # threshold: rigid, tension up to R_c while the gap stays below W_eth
+    R_c: float | None = _f("float", bounds="> 0", unit="Pa", when=("law", "threshold"))
+    W_eth: float | None = _f("float", bounds="> 0", unit="m", when=("law", "threshold"))
+    # Coulomb friction; rccm: mu (1 - beta) acts; threshold, linear_softening: on the cone
+    # shifted by the cohesion while the link holds
+    mu: float | None = _f("float", 0.0, bounds=">= 0", when=_FRICTIONAL)
 
     def adhesion_energy(self, C_N: float) -> float:
         """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (PHYSICS.md §1)."""
@@ -366,6 +375,9 @@ def _check(case: Case) -> None:
     if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
         raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
                         "rccm needs exactly one of them (Pa, J/m^2)")
+    if law.law == "linear_softening" and law.sigma_c is None:
+        raise CaseError("interface.sigma_c: missing (required when interface.law is "
+                        "'linear_softening'), Pa")
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")

@@ -16,11 +16,11 @@ from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.post.figures import broken_mesh_png
-from dolfrag.post.fragments import fragments
+from dolfrag.post.fragments import breaks_along, fragments
 from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
-from dolfrag.solver.semismooth import StarNewton
+from dolfrag.solver.semismooth import ConvergenceError, StarNewton
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J",
                   "W_external_J", "balance_error_J"]
@@ -33,7 +33,12 @@ def interface_step(interface, E, size, stars, jump, m, h):
     n = len(jump.links)
     if interface.law == "elastic":
         return ElasticSprings(stars, jump, models.Elastic(n, C_N, C_T), m, h)
-    model = models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
+    if interface.law == "threshold":
+        model = models.Threshold(n, interface.R_c, interface.W_eth, interface.mu)
+    elif interface.law == "linear_softening":
+        model = models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu)
+    else:
+        model = models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
     return StarNewton(stars, jump, model, m, h)
 
 
@@ -70,6 +75,25 @@ def _probes(space, domain):
     return probes
 
 
+def _fail(integ, output, write_fields, comm):
+    """Save the state of a step whose Newton failed (failure.pvd), then raise. Collective."""
+    stars = comm.allreduce(integ.interface.unconverged)
+    residual = comm.allreduce(integ.interface.residual, op=MPI.MAX)
+    output.failure(lambda out: write_fields(integ.t, out))
+    raise ConvergenceError(
+        f"t = {integ.t:.6g} s (step {integ.n}): {stars} vertex star(s) did not converge in "
+        f"{integ.interface.max_iterations} Newton iterations (worst scaled residual {residual:.3g}, "
+        f"tolerance {integ.interface.rtol:g}); the state is saved in failure.pvd")
+
+
+def _free_end(case):
+    """x (m) of the far end of a rectangle bar loaded on its left or right edge, else None:
+    breaks are then reported from it, first to complete first."""
+    if case.geometry.kind != "rectangle" or case.load.boundary not in ("left", "right"):
+        return None
+    return case.geometry.length if case.load.boundary == "left" else 0.0
+
+
 def run(case, out, quiet=False, comm=None):
     """Run ``case`` (a config.Case, a case file path or a built-in name); write
     summary.json, history.csv, fields.pvd and figures/ into ``out``. Collective.
@@ -81,16 +105,16 @@ def run(case, out, quiet=False, comm=None):
     domain, space, links, integ, n_steps, dt_crit = setup(case, comm)
     probes = _probes(space, domain)
     columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
-               "newton_unconverged", *probes]
+               "newton_unconverged", "newton_residual", *probes]
     snapshots = set(np.round(np.linspace(0, n_steps, case.output.fields + 1)).astype(int)) \
         if case.output.fields else set()
     output = RunOutput(out, comm, columns, fields=bool(snapshots))
     damage = compat.Function(compat.dg1_scalar_space(space.mesh))
     damage.name = "damage"
 
-    def write_fields(t):
+    def write_fields(t, vtk=None):
         dof_damage(space, links, integ.model.damage(), damage)
-        output.fields([integ.u, integ.v, damage], t)
+        output.fields([integ.u, integ.v, damage], t, vtk)
 
     progress = Progress(n_steps, quiet=quiet, rank=comm.rank)
     summary = {"case": case.to_dict(), "version": __version__, "ranks": comm.size,
@@ -100,16 +124,22 @@ def run(case, out, quiet=False, comm=None):
                "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
                "status": "running"}
     max_error, max_work, energies = 0.0, 0.0, None
+    break_time = np.full(len(links), np.nan)  # s, when each link broke
     try:
         if 0 in snapshots:
             write_fields(0.0)
         for k in range(1, n_steps + 1):
             t_n = integ.t
             energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
+            if integ.model.can_break:
+                break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
+                if comm.allreduce(integ.interface.unconverged):
+                    _fail(integ, output, write_fields, comm)
             if energies is not None:
                 probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
                 newton = [comm.allreduce(integ.interface.iterations, op=MPI.MAX),
-                          comm.allreduce(integ.interface.unconverged, op=MPI.SUM)]
+                          comm.allreduce(integ.interface.unconverged, op=MPI.SUM),
+                          comm.allreduce(integ.interface.residual, op=MPI.MAX)]
                 output.row([k, t_n + integ.h / 2, integ.pressure(t_n),
                             *(getattr(energies, a) for a in ENERGY_FIELDS), energies.broken_links, *newton,
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])
@@ -132,8 +162,16 @@ def run(case, out, quiet=False, comm=None):
         summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
         output.summary(summary)
         output.close()
-    frags = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array)
+    frags = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array,
+                      break_time)
     summary["fragments"] = frags.to_dict()
+    free_end = _free_end(case)
+    if free_end is not None:
+        along = breaks_along(frags, axis=0, free_end=free_end)
+        first = np.argsort(np.nan_to_num(along.time, nan=np.inf), kind="stable")
+        summary["breaks"] = [{"distance_from_free_end_m": float(along.distance[i]),
+                              "time_s": None if np.isnan(along.time[i]) else float(along.time[i])}
+                             for i in first]
     output.summary(summary)
     if case.output.figures:
         speed = np.linalg.norm(integ.v.x.array.reshape(-1, space.gdim), axis=1)

@@ -6,14 +6,15 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag.post.fragments import fragments
-from test_fragments import LENGTH, assemble, band_fields, cut, hold_one_link
+from test_fragments import LENGTH, assemble, band_fields, cut, hold_one_link, plane_break_times
 
 comm = MPI.COMM_WORLD
 space, links, mass = assemble(comm)
 results = {}
 for name, planes in (("half", [LENGTH / 2]), ("chain", [LENGTH / 4, LENGTH / 2, 3 * LENGTH / 4])):
     v, u = band_fields(space, planes)
-    frags = fragments(space, links, cut(space, links, planes), mass, v, displacement=u)
+    times = plane_break_times(space, links, planes, 1e-6 * np.arange(1, len(planes) + 1), 0.5e-6)
+    frags = fragments(space, links, cut(space, links, planes), mass, v, displacement=u, break_time=times)
     results.update({f"{name}_{key}": np.asarray(value) for key, value in vars(frags).items()})
     assert len(set(comm.allgather(frags.centroid.tobytes()))) == 1, "ranks disagree"
 broken = cut(space, links, [LENGTH / 2])

@@ -82,7 +82,7 @@ def test_nothing_broken_is_one_fragment_with_total_mass_at_the_centre(setup):
     # vertex quadrature integrates x exactly on P1 cells: the lumped-mass centroid is exact
     assert np.allclose(frags.centroid[0], [LENGTH / 2, WIDTH / 2], rtol=0, atol=ROUNDOFF * LENGTH)
     assert np.allclose(frags.bbox_min[0], 0.0) and np.allclose(frags.bbox_max[0], [LENGTH, WIDTH])
-    assert breaks_along(frags).shape == (0,)
+    assert breaks_along(frags).distance.shape == (0,)
 
 
 def test_cut_at_mid_length_gives_two_halves_with_their_masses_and_velocities(setup):
@@ -96,9 +96,9 @@ def test_cut_at_mid_length_gives_two_halves_with_their_masses_and_velocities(set
     assert np.allclose(frags.mass, [m[left].sum(), m[~left].sum()], rtol=ROUNDOFF, atol=0)
     assert np.array_equal(frags.cells, [left.sum(), (~left).sum()])
     assert np.allclose(frags.velocity, [[1.0, 0.0], [-1.0, 0.0]], rtol=0, atol=ROUNDOFF)
-    gap = breaks_along(frags)
+    gap = breaks_along(frags).distance
     assert gap.shape == (1,) and abs(gap[0] - LENGTH / 2) < H  # a jagged cut, within a cell
-    assert breaks_along(frags, free_end=LENGTH) == pytest.approx(LENGTH - gap)
+    assert breaks_along(frags, free_end=LENGTH).distance == pytest.approx(LENGTH - gap)
 
 
 def test_displacement_moves_centroid_and_bbox_of_the_displaced_fragment(setup):
@@ -123,9 +123,31 @@ def test_three_cuts_give_four_fragments_in_order_along_the_bar(setup):
     assert np.allclose(frags.mass, expected, rtol=ROUNDOFF, atol=0)
     assert np.allclose(frags.velocity[:, 0], [1.0, -1.0, 1.0, -1.0], rtol=0, atol=ROUNDOFF)
     assert np.all(np.diff(frags.centroid[:, 0]) > 0)
-    assert np.all(np.abs(breaks_along(frags) - planes) < H)
-    from_right = breaks_along(frags, free_end=LENGTH)
-    assert np.allclose(from_right, LENGTH - np.sort(breaks_along(frags))[::-1])
+    along = breaks_along(frags)
+    assert np.all(np.abs(along.distance - planes) < H) and np.all(np.isnan(along.time))
+    from_right = breaks_along(frags, free_end=LENGTH).distance
+    assert np.allclose(from_right, LENGTH - along.distance[::-1])
+
+
+def plane_break_times(space, links, planes, times, last_link_late=0.0):
+    """Break time of every link cut by planes[i]: times[i] (NaN for intact links); the
+    link at each cut facet's upper vertex ``last_link_late`` later."""
+    band, cell = bands(space, planes), cell_of_dof(space)
+    a, b = band[cell[links.dof_A]], band[cell[links.dof_B]]
+    t = np.where(a != b, np.append(times, np.nan)[np.minimum(a, b)], np.nan)
+    late = ~hold_one_link(space, links, np.ones(len(links), bool))
+    return t + last_link_late * late
+
+
+def test_a_break_completes_when_the_last_link_between_two_fragments_breaks(setup):
+    space, links, mass = setup
+    planes, times = [LENGTH / 4, LENGTH / 2, 3 * LENGTH / 4], [3e-6, 1e-6, 2e-6]
+    broken = cut(space, links, planes)
+    frags = fragments(space, links, broken, mass, np.zeros_like(mass),
+                      break_time=plane_break_times(space, links, planes, times, 0.5e-6))
+    assert len(frags.neighbours) == 3 and np.array_equal(frags.neighbours, [[0, 1], [1, 2], [2, 3]])
+    # every plane completes when its late links break; read from the free end x = LENGTH
+    assert breaks_along(frags, free_end=LENGTH).time == pytest.approx([2.5e-6, 1.5e-6, 3.5e-6], rel=1e-15)
 
 
 def test_everything_broken_gives_one_fragment_per_cell(setup):

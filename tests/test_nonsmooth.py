@@ -95,3 +95,20 @@ def test_damage_field_is_the_largest_link_damage_at_each_dof():
         last = np.r_[dofs[order][1:] != dofs[order][:-1], True]
         expected[dofs[order][last]] = np.maximum(expected[dofs[order][last]], (1 - integ.model.beta)[order][last])
     assert np.array_equal(field.x.array, expected)
+
+
+def test_a_step_newton_cannot_finish_fails_clearly_and_saves_the_state(tmp_path, monkeypatch):
+    import functools
+
+    from dolfrag import runner
+    from dolfrag.solver.semismooth import ConvergenceError, StarNewton
+    # one Newton iteration cannot solve a star whose contact pattern changes
+    monkeypatch.setattr(runner, "StarNewton", functools.partial(StarNewton, max_iterations=1))
+    case = load_case(RCCM_BAR, ["output.fields=0", "output.figures=false"])
+    with pytest.raises(ConvergenceError, match=r"vertex star\(s\) did not converge in 1 Newton"):
+        runner.run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"].startswith("failed at t = ") and "ConvergenceError" in summary["status"]
+    assert (tmp_path / "failure.pvd").stat().st_size > 0
+    # history.csv keeps what was written before the failure, residual column included
+    assert "newton_residual" in (tmp_path / "history.csv").read_text().splitlines()[0]

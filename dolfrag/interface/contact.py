@@ -32,7 +32,7 @@ class ProjectionJacobian(NamedTuple):
 OPEN, STICK, SLIP = 0, 1, 2
 
 
-def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift):
+def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
     """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; PHYSICS.md §1).
 
     symbol    meaning                                            unit        shape
@@ -45,11 +45,13 @@ def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift
     rho_T     tangential augmentation                            Pa/m        scalar or (n,)
     mu        friction coefficient (mu (1 - beta) for RCCM)      -           scalar or (n,)
     shift     cohesion: R_c for an intact threshold link, else 0 Pa          scalar or (n,)
+    cohesion_T  shear cohesion: radius of the cone at r~_N = 0 Pa          scalar or (n,)
 
     Shifted Signorini on r~_N = r_N + shift:  r~_N >= 0, g_N >= 0, r~_N g_N = 0;
-    Coulomb on the shifted cone:  |r_T| <= mu r~_N, and r_T = -mu r~_N v/|v| when slipping.
+    Coulomb on the shifted cone:  |r_T| <= s = mu r~_N + cohesion_T, and r_T = -s v/|v| when
+    slipping (cohesion_T = 0 but for a rigid linear-softening link, interface/models.py).
     phi_N = r~_N - proj_R+(r~_N - rho_N g_N)  =  r_N - max(-shift, r_N - rho_N g_N)
-    phi_T = r_T - proj_D(r_T - rho_T g_T_rate),  D = disc of radius mu max(r~_N, 0)
+    phi_T = r_T - proj_D(r_T - rho_T g_T_rate),  D = disc of radius mu max(r~_N, 0) + cohesion_T
     Both vanish exactly when the conditions hold. rho only scales the Newton steps: a value
     of the order of the interface stiffness (C_N or E/h) balances reactions and gaps.
     Branches: contact where r~_N - rho_N g_N >= 0 (else open); with y = r_T - rho_T
@@ -68,7 +70,7 @@ def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift
     r_shift = r_N + shift
     contact = r_shift - rho_N * g_N >= 0
     phi_N = r_shift - np.maximum(0.0, r_shift - rho_N * g_N)
-    radius = mu * np.maximum(r_shift, 0.0)
+    radius = mu * np.maximum(r_shift, 0.0) + cohesion_T
     y = r_T - rho_T * v
     norm_y = np.linalg.norm(y, axis=-1)
     stick = (norm_y <= radius) & (radius > 0)

@@ -30,6 +30,8 @@ class Cohesion(NamedTuple):
 class Elastic:
     """Linear springs C_N, C_T (Pa/m) in tension and compression; no state, never broken."""
 
+    can_break = False
+
     def __init__(self, n_links, C_N, C_T):
         self.C_N, self.C_T, self.n_links = C_N, C_T, n_links
 
@@ -54,6 +56,8 @@ class Rccm:
     mu -; h s (time step, for the viscous update).
     """
 
+    can_break = True
+
     def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None):
         self.C_N, self.C_T, self.w, self.b, self.mu, self.h = C_N, C_T, w, b, mu, h
         self.beta = np.ones(n_links)
@@ -64,6 +68,15 @@ class Rccm:
 
     def friction(self, beta):
         return laws.rccm_friction_coefficient(beta, self.mu)
+
+    def shift(self, beta):
+        """Tension (Pa) the contact constraint itself may carry: none, the springs do."""
+        return np.zeros_like(beta)
+
+    shear_cohesion = shift
+
+    def absorb(self, work):
+        """Cohesive work of the constraint: none (no shift)."""
 
     def cohesion(self, g_N, g_T, beta_n):
         """Traction of the step, with the damage lagged by one step: r = beta_n^2 C g
@@ -111,3 +124,165 @@ class Rccm:
     def damage(self):
         """1 - beta per link: 0 sound, 1 broken."""
         return 1.0 - self.beta
+
+
+# A rigid link counts as opened once its mid-step jump exceeds this fraction of the law's
+# length scale (W_eth, delta_c): far above the gaps the contact solve leaves (~1e-20 m,
+# solver/semismooth.py) and far below any physical opening.
+OPENING_TOLERANCE = 1e-9
+
+
+class _Rigid:
+    """Bookkeeping shared by the laws that keep a link rigid, as a constraint, until it
+    opens: the star solve enforces Signorini-Coulomb shifted by the cohesion
+    (interface/contact.py, ``shift`` and ``shear_cohesion``), and reports the work the
+    cohesive part of the reactions did on each link (``absorb``). That work is the energy
+    stored in a rigid link, released when the link opens or breaks."""
+
+    can_break = True
+    C_N = C_T = None  # no springs while rigid
+
+    def __init__(self, n_links, mu):
+        self.mu = mu
+        self.work = np.zeros(n_links)  # J/m^2: cohesive work on each rigid link
+        self.released = np.zeros(n_links)
+
+    def friction(self, state):
+        return np.full(np.shape(state), float(self.mu))
+
+    def absorb(self, work):
+        """Add the work (J/m^2, per owned link) the cohesive reactions did this step."""
+        self.work += work
+
+    def dissipated(self):
+        return self.released
+
+
+class Threshold(_Rigid):
+    """The seed's rigid threshold law (laws.threshold): tension up to R_c (Pa) while the
+    gap stays below W_eth (m), then broken for good; Coulomb friction mu on the cone
+    shifted by R_c while cohesive, plain Coulomb after. State: 1.0 where broken, else 0.
+
+    The cohesive work R_c g_N is stored while the link holds and lost when it breaks:
+    R_c g_mid at the step the mid-step gap passes W_eth (R_c W_eth to within one step's
+    opening)."""
+
+    def __init__(self, n_links, R_c, W_eth, mu=0.0):
+        super().__init__(n_links, mu)
+        self.R_c, self.W_eth = R_c, W_eth
+        self.lost = np.zeros(n_links)
+
+    def state_at(self, links):
+        return self.lost[links]
+
+    def shift(self, lost):
+        return np.where(lost > 0, 0.0, self.R_c)
+
+    def shear_cohesion(self, lost):
+        return np.zeros_like(lost)
+
+    def cohesion(self, g_N, g_T, lost_n):
+        """No springs: the whole law is in the shifted contact constraint."""
+        return _no_springs(g_T, lost_n)
+
+    def store(self, links, state, valid, g_N, g_T):
+        """Break the links whose mid-step gap g_N (n, L) passed W_eth (the trial ``state``
+        is not used: this law's state follows from the converged gap)."""
+        idx = links[valid]
+        broken = laws.threshold(g_N[valid], self.lost[idx] > 0, self.R_c, self.W_eth)[1]
+        newly = idx[broken & (self.lost[idx] == 0)]
+        self.released[newly] += self.work[newly]
+        self.work[newly] = 0.0
+        self.lost[idx] = broken
+
+    def stored_energy(self, g_N, g_T):
+        return np.where(self.lost > 0, 0.0, self.work)
+
+    def broken(self):
+        return self.lost > 0
+
+    def damage(self):
+        return self.lost
+
+
+class LinearSoftening(_Rigid):
+    """Linear softening (laws.linear_softening, Camacho-Ortiz / Akantu): rigid until the
+    link opens, with tension up to sigma_c (Pa) and shear up to sigma_c beta_ratio^-1
+    (the shifted cone of interface/contact.py); then secant springs S(delta_max) that
+    soften linearly to zero at delta_c = 2 G_c / sigma_c (G_c J/m^2) and unload to the
+    origin; Coulomb friction mu. State: delta_max (m), 0 while rigid.
+
+    As for RCCM the secant is lagged by one step (each star problem stays monotone) and
+    the drop S_n -> S at the mid jump is booked as released energy; at opening, the
+    cohesive work done while rigid less the energy of the new secant is released."""
+
+    def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0):
+        super().__init__(n_links, mu)
+        self.sigma_c, self.G_c, self.beta_ratio, self.kappa = sigma_c, G_c, beta_ratio, kappa
+        self.delta_c = 2 * G_c / sigma_c
+        self.a_T = beta_ratio**2 / kappa  # the law's shear weight on the traction
+        self.delta_max = np.zeros(n_links)
+
+    def state_at(self, links):
+        return self.delta_max[links]
+
+    def shift(self, delta_max):
+        return np.where(delta_max > 0, 0.0, self.sigma_c)
+
+    def shear_cohesion(self, delta_max):
+        return np.where(delta_max > 0, 0.0, self.sigma_c / self.beta_ratio)
+
+    def secant(self, delta_max):
+        """S(delta_max) (Pa/m): the traction factor of the law, 0 while rigid or broken."""
+        inside = (delta_max > 0) & (delta_max < self.delta_c)
+        return np.where(inside, self.sigma_c * (1 / np.where(inside, delta_max, 1.0) - 1 / self.delta_c), 0.0)
+
+    def cohesion(self, g_N, g_T, delta_max_n):
+        """Secant springs at the lagged delta_max_n (none on rigid links: the constraint
+        carries them)."""
+        S = self.secant(delta_max_n)
+        m = g_T.shape[1]
+        zeros = np.zeros((len(S), m))
+        return Cohesion(S * np.maximum(g_N, 0.0), (self.a_T * S)[:, None] * g_T, S * (g_N > 0),
+                        (self.a_T * S)[:, None, None] * np.eye(m), zeros, zeros, delta_max_n)
+
+    def _delta(self, g_N, g_T):
+        shear = self.beta_ratio**2 / self.kappa**2
+        return np.sqrt(shear * np.sum(g_T**2, axis=-1) + np.maximum(g_N, 0.0) ** 2)
+
+    def _psi(self, g_N, g_T):
+        return np.maximum(g_N, 0.0) ** 2 + self.a_T * np.sum(g_T**2, axis=-1)
+
+    def store(self, links, state, valid, g_N, g_T):
+        """delta_max from the mid-step jumps g_N (n, L), g_T (n, L, d-1); book the
+        released energy (the trial ``state`` is not used)."""
+        idx = links[valid]
+        gN, gT = g_N[valid], g_T[valid]
+        old = self.delta_max[idx]
+        delta = self._delta(gN, gT)
+        opening = (old == 0) & (delta > OPENING_TOLERANCE * self.delta_c)
+        new = np.where(opening, delta, np.where(old > 0, np.maximum(old, delta), 0.0))
+        psi = self._psi(gN, gT)
+        S_new = self.secant(new)
+        self.released[idx] += np.where(opening, self.work[idx] - 0.5 * S_new * psi,
+                                       0.5 * (self.secant(old) - S_new) * psi * (old > 0))
+        self.work[idx[opening]] = 0.0
+        self.delta_max[idx] = new
+
+    def stored_energy(self, g_N, g_T):
+        rigid = self.delta_max == 0
+        return np.where(rigid, self.work, 0.5 * self.secant(self.delta_max) * self._psi(g_N, g_T))
+
+    def broken(self):
+        return self.delta_max >= self.delta_c
+
+    def damage(self):
+        """delta_max / delta_c, clipped to 1: 0 rigid, 1 broken."""
+        return np.minimum(self.delta_max / self.delta_c, 1.0)
+
+
+def _no_springs(g_T, state_n):
+    n, m = g_T.shape
+    zeros = np.zeros(n)
+    return Cohesion(zeros, np.zeros((n, m)), zeros, np.zeros((n, m, m)), np.zeros((n, m)),
+                    np.zeros((n, m)), state_n)

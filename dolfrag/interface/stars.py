@@ -61,8 +61,8 @@ class Stars:
         self._slot_A = slot_of[links.dof_A]
         self._slot_B = slot_of[links.dof_B]
         assert np.array_equal(self._link_row, row_of[links.dof_B]), "a link leaves its star"
-        self._fixed = np.zeros(n_dofs * d, dtype=bool)
-        self._fixed[np.asarray(constrained, dtype=np.int64)] = True
+        self.constrained = np.zeros(n_dofs * d, dtype=bool)  # flat, per local component
+        self.constrained[np.asarray(constrained, dtype=np.int64)] = True
         for g, grp in enumerate(self.groups):
             self._tabulate_links(grp, np.flatnonzero(self._link_group == g))
 
@@ -86,7 +86,7 @@ class Stars:
 
     def fixed(self, grp):
         """(n_s, k*gdim) bool: the group's prescribed components."""
-        return self._fixed[grp.comps]
+        return self.constrained[grp.comps]
 
     def factorise(self, m, blocks, c):
         """Invert diag(m) + c * sum over links of [[D, -D], [-D, D]] for every star.
@@ -108,7 +108,7 @@ class Stars:
             np.add.at(A, (r, b, slice(None), a), -D)
             A = A.reshape(n_s, q, q)
             A[:, np.arange(q), np.arange(q)] += m[grp.comps]
-            fixed = self._fixed[grp.comps]
+            fixed = self.constrained[grp.comps]
             A[fixed[:, :, None] | fixed[:, None, :]] = 0.0
             A[:, np.arange(q), np.arange(q)] += fixed
             inv = np.linalg.inv(A)

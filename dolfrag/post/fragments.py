@@ -10,12 +10,16 @@ identified by a key that is the same on every rank: the sorted pair of global in
 of its two cells. Each interior facet joins exactly two cells, so no facet index map
 is needed.
 
+The time a facet is cut is the time its last link broke. Two fragments that touch
+separated when the last facet between them was cut: ``Fragments.separated_at``.
+
 Parallel limit: every rank sends rank 0 one row per owned cell and one per owned
 link. Rank 0 builds the global graph and works out the fragments, then broadcasts them.
 Rank 0's memory grows with the global mesh. This is fine for the post-processing of a
 single run; a distributed union-find would be needed for very large meshes.
 """
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -38,6 +42,9 @@ class Fragments:
     velocity (k, gdim) m/s: mean velocity, momentum / mass.
     bbox_min, bbox_max (k, gdim) m: corners of the bounding box of the fragment's cells.
     cells (k,) int64: number of cells.
+    neighbours (p, 2) int64: pairs of fragments (indices in this order, i < j) that share
+    cut facets; separated_at (p,) s: when the last facet between them was cut (NaN if no
+    break times were given).
     """
     mass: np.ndarray
     centroid: np.ndarray
@@ -45,14 +52,18 @@ class Fragments:
     bbox_min: np.ndarray
     bbox_max: np.ndarray
     cells: np.ndarray
+    neighbours: np.ndarray
+    separated_at: np.ndarray
 
     def __len__(self):
         return len(self.mass)
 
     def to_dict(self):
-        """JSON-ready dict of plain lists (for summary.json), plus ``count``."""
+        """JSON-ready dict of plain lists (for summary.json), plus ``count``; NaN times
+        become null."""
         out = {name: getattr(self, name).tolist()
-               for name in ("mass", "centroid", "velocity", "bbox_min", "bbox_max", "cells")}
+               for name in ("mass", "centroid", "velocity", "bbox_min", "bbox_max", "cells", "neighbours")}
+        out["separated_at"] = [None if np.isnan(t) else t for t in self.separated_at.tolist()]
         return {"count": len(self), **out}
 
 
@@ -71,14 +82,14 @@ def _cell_rows(space, mass, velocity, displacement):
     return m_dof.sum(axis=1), momentum, moment, x.min(axis=1), x.max(axis=1)
 
 
-def _facet_rows(space, links, broken):
-    """Per owned link: global indices (n, 2) of its facet's two cells, sorted, and
-    whether the link holds (not broken)."""
+def _facet_rows(space, links, broken, break_time):
+    """Per owned link: global indices (n, 2) of its facet's two cells, sorted, whether
+    the link holds (not broken), and when it broke (s)."""
     tdim = space.mesh.topology.dim
     f2c = space.mesh.topology.connectivity(tdim - 1, tdim)
     local = f2c.array[f2c.offsets[links.facet][:, None] + np.arange(2)]
     cells = space.mesh.topology.index_map(tdim).local_to_global(local.ravel().astype(np.int32))
-    return np.sort(cells.reshape(-1, 2), axis=1), ~np.asarray(broken, dtype=bool)
+    return np.sort(cells.reshape(-1, 2), axis=1), ~np.asarray(broken, dtype=bool), break_time
 
 
 def _reduce(order, starts, values, ufunc=np.add):
@@ -99,8 +110,11 @@ def _combine(n_cells, cell_rows, facet_rows):
     mass, momentum, moment, lo, hi = fields
     pairs = np.concatenate([r[0] for r in facet_rows]).astype(np.int64)
     holds = np.concatenate([r[1] for r in facet_rows])
+    link_time = np.concatenate([r[2] for r in facet_rows])
     key, inverse = np.unique(pairs[:, 0] * n_cells + pairs[:, 1], return_inverse=True)
     joined = np.bincount(inverse, weights=holds, minlength=len(key)) > 0
+    facet_time = np.full(len(key), -np.inf)
+    np.maximum.at(facet_time, inverse, np.where(np.isnan(link_time), -np.inf, link_time))
     a, b = key[joined] // n_cells, key[joined] % n_cells
     graph = sp.csr_matrix((np.ones(len(a)), (a, b)), shape=(n_cells, n_cells))
     k, labels = connected_components(graph, directed=False)
@@ -115,11 +129,25 @@ def _combine(n_cells, cell_rows, facet_rows):
     scale = np.max(hi.max(axis=0) - lo.min(axis=0))
     rounded = np.round(centroid / scale, ORDER_DIGITS)
     sort = np.lexsort(rounded.T[::-1])
+    position = np.empty(k, dtype=np.int64)
+    position[sort] = np.arange(k)
+    neighbours, separated_at = _separations(position[labels], key[~joined], facet_time[~joined], n_cells)
     return Fragments(m[sort], centroid[sort], velocity[sort], bbox_min[sort], bbox_max[sort],
-                     count[sort])
+                     count[sort], neighbours, separated_at)
 
 
-def fragments(space, links, broken, mass, velocity, displacement=None):
+def _separations(fragment_of_cell, cut_keys, cut_time, n_cells):
+    """Pairs of fragments sharing cut facets, and when their last shared facet was cut."""
+    pair = np.sort(fragment_of_cell[np.stack([cut_keys // n_cells, cut_keys % n_cells], axis=1)], axis=1)
+    between = pair[:, 0] != pair[:, 1]  # facets cut inside a fragment do not separate it
+    k = fragment_of_cell.max() + 1
+    pair_key, inverse = np.unique(pair[between, 0] * k + pair[between, 1], return_inverse=True)
+    time = np.full(len(pair_key), -np.inf)
+    np.maximum.at(time, inverse, cut_time[between])
+    return np.stack([pair_key // k, pair_key % k], axis=1), np.where(np.isinf(time), np.nan, time)
+
+
+def fragments(space, links, broken, mass, velocity, displacement=None, break_time=None):
     """The fragments of the body (module rule). Collective. Every rank returns the same
     Fragments, whatever the number of ranks. Reads its inputs and never changes them.
 
@@ -128,7 +156,8 @@ def fragments(space, links, broken, mass, velocity, displacement=None):
     mass: flat lumped mass of every local dof component, kg (``bulk.m.x.array``).
     velocity, displacement: flat dof arrays like ``Function.x.array``, m/s and m. Only
     the owned values are read. The centroid and bbox include the displacement if
-    one is given.
+    one is given. break_time (n_owned_links,) s: when each broken link broke (NaN for
+    the others), for ``separated_at``.
     """
     broken = np.asarray(broken)
     if broken.shape != (len(links),):
@@ -139,24 +168,38 @@ def fragments(space, links, broken, mass, velocity, displacement=None):
     imap = space.mesh.topology.index_map(tdim)
     gidx = imap.local_to_global(np.arange(space.n_owned_cells, dtype=np.int32))
     cell_rows = comm.gather((gidx, _cell_rows(space, mass, velocity, displacement)), root=0)
-    facet_rows = comm.gather(_facet_rows(space, links, broken), root=0)
+    if break_time is None:
+        break_time = np.full(len(links), np.nan)
+    facet_rows = comm.gather(_facet_rows(space, links, broken, np.asarray(break_time, dtype=float)), root=0)
     result = _combine(imap.size_global, cell_rows, facet_rows) if comm.rank == 0 else None
     return comm.bcast(result, root=0)
 
 
+class Breaks(NamedTuple):
+    """Breaks of a bar-like body, in order along the bar (from the free end if one was
+    given): distance (m) from the free end, or position on the axis; time (s) it
+    completed, NaN if unknown."""
+    distance: np.ndarray
+    time: np.ndarray
+
+
 def breaks_along(frags, axis=0, free_end=None):
-    """Break positions of a bar-like body along ``axis``, m.
+    """Breaks of a bar-like body along ``axis``.
 
     The fragments are ordered by centroid along the axis. A break is the midpoint
-    between one fragment's bbox_max and the next one's bbox_min. If ``free_end`` is
-    given (m, the coordinate of the free end), returns the distances
-    ``|free_end - position|`` in increasing order. Otherwise returns the positions
-    themselves in increasing order. Shape (len(frags) - 1,). Every fragment counts,
-    even a single detached cell.
+    between one fragment's bbox_max and the next one's bbox_min; it completed when
+    those two fragments separated (``Fragments.separated_at``). If ``free_end`` is given
+    (m, the coordinate of the free end), distances are ``|free_end - position|``, nearest
+    first. Every fragment counts, even a single detached cell.
     """
     order = np.argsort(frags.centroid[:, axis], kind="stable")
     lo, hi = frags.bbox_min[order, axis], frags.bbox_max[order, axis]
     position = 0.5 * (hi[:-1] + lo[1:])
+    when = dict(zip(map(tuple, frags.neighbours.tolist()), frags.separated_at))
+    pairs = np.sort(np.stack([order[:-1], order[1:]], axis=1), axis=1)
+    time = np.array([when.get(tuple(p), np.nan) for p in pairs.tolist()])
     if free_end is None:
-        return np.sort(position)
-    return np.sort(np.abs(free_end - position))
+        return Breaks(position, time)
+    distance = np.abs(free_end - position)
+    nearest = np.argsort(distance, kind="stable")
+    return Breaks(distance[nearest], time[nearest])

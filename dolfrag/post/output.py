@@ -45,11 +45,20 @@ class RunOutput:
             self._csv.writerow([f"{x:.10g}" for x in values])
             self._csv_file.flush()
 
-    def fields(self, functions, t):
-        """Write DG functions at time t (s). Collective; updates their ghost values."""
+    def fields(self, functions, t, vtk=None):
+        """Write DG functions at time t (s) to fields.pvd (or the open VTK file ``vtk``).
+        Collective; updates their ghost values."""
         for f in functions:
             compat.scatter_forward(f)
-        self._vtk.write_function(functions, t)
+        (vtk or self._vtk).write_function(functions, t)
+
+    def failure(self, write):
+        """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""
+        vtk = compat.vtk_file(self.comm, self.out / "failure.pvd")
+        try:
+            write(vtk)
+        finally:
+            vtk.close()
 
     def summary(self, data):
         if self.comm.rank == 0:

@@ -55,6 +55,8 @@ class ElasticSprings:
 
     contact_dissipated = 0.0  # no contact: the springs act in compression too
     iterations = unconverged = 0  # a direct solve
+    residual = 0.0
+    reaction = None  # the inverted blocks give prescribed components no increment
 
     def solve(self, f, g_n, v, out):
         r_N, r_T, _, _ = laws.elastic(*self.jump.local(g_n), self.model.C_N, self.model.C_T)
@@ -92,6 +94,22 @@ class Imex:
         self.work = 0.0
         self._g = jump(self.u.x.array)
         self._g_before = self._g.copy()  # g_{n-1}
+        self._imposed = None
+
+    def impose(self, comps, velocity):
+        """Prescribe the velocity of supported components from now on: ``velocity(t)``
+        (m/s, an array like ``comps``) at the mid-step times t_{n+1/2}; comps: flat local
+        components, all held by the supports. Drives patch tests and imposed motions; the
+        reactions are the step solver's ``reaction`` (N), and their work is not in the
+        energy balance."""
+        comps = np.asarray(comps, dtype=np.int64)
+        if self.interface.reaction is None:
+            raise ValueError("impose: the elastic law's inverted star blocks cannot move "
+                             "prescribed components; use a nonsmooth law")
+        if not self.interface.stars.constrained[comps].all():
+            raise ValueError("impose: every component must be held by a support "
+                             "(supports.clamped or supports.rollers)")
+        self._imposed = (comps, velocity)
 
     def step(self, energies=False):
         """Advance from t_n to t_{n+1}. With ``energies``, return the Energies at
@@ -105,6 +123,9 @@ class Imex:
         compat.scatter_forward(self.f)
 
         dv[:] = 0.0
+        if self._imposed is not None:
+            comps, velocity = self._imposed
+            dv[comps] = velocity(self.t + h / 2) - v[comps]
         self.interface.solve(f, self._g, v, dv)
         mine = dv[self.star_comps]
         compat.scatter_reverse_add(self.dv)

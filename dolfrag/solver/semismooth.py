@@ -26,6 +26,13 @@ import numpy as np
 
 from dolfrag.interface.contact import contact_friction_projection
 
+# A link whose two copies are both prescribed (between supported copies, or in a patch
+# test) has a known jump, so Newton cannot move it and its contact rows would be singular.
+# Its reaction is the projection itself, taken with the augmentation FROZEN times larger
+# (so a prescribed opening releases the constraint at once) and iterated as a fixed
+# point: identity rows in the Jacobian.
+FROZEN = 1e6
+
 
 class StarNewton:
     """Nonsmooth step solver for the owned stars.
@@ -43,9 +50,11 @@ class StarNewton:
         frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
         self._frame = frame
         self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
+        self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
         self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
         self.iterations = 0
         self.unconverged = 0
+        self.residual = 0.0  # largest final scaled residual of the step's stars
         self._data = []
         self._cache = []
         for grp in stars.groups:
@@ -62,7 +71,11 @@ class StarNewton:
                             + m_star.reshape(n_s, k, d)[s, grp.slot_B[s, l], 0])
             rho = np.ones((n_s, L))
             rho[s, l] = m_pair / (h * h * weight[s, l])  # the step's own stiffness, Pa/m
-            self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, stars.fixed(grp)))
+            fixed = stars.fixed(grp)
+            held = fixed.reshape(n_s, k, d).all(axis=2)
+            frozen = np.zeros((n_s, L), dtype=bool)  # both copies prescribed
+            frozen[s, l] = held[s, grp.slot_A[s, l]] & held[s, grp.slot_B[s, l]]
+            self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, fixed, frozen))
             # last Jacobian inverse of each star, reused while its damage does not change
             self._cache.append((np.zeros((n_s, q + L * d, q + L * d)), np.zeros(n_s, dtype=bool)))
 
@@ -70,26 +83,42 @@ class StarNewton:
         """Velocity increments of every owned star into out[star comps].
 
         f: flat f_ext - K u_n on local components (ghosts updated), N;
-        g_n (n_links, gdim): link jumps of u_n (m), global frame; v: flat v_{n-1/2} (m/s).
-        Updates the model's state (damage) and the contact reactions.
+        g_n (n_links, gdim): link jumps of u_n (m), global frame; v: flat v_{n-1/2} (m/s);
+        out: flat, holding on entry the increments of the prescribed components (m/s).
+        Updates the model's state (damage), the contact reactions and the reactions of
+        the prescribed components (``reaction``, N).
         """
         frame = self._frame
         g_loc = np.einsum("lij,lj->li", frame, g_n)
         dg_loc = self.h * np.einsum("lij,lj->li", frame, self.jump(v))
+        state_n = self.model.state_at(np.arange(len(self.r)))
+        self._mu, self._shift = self.model.friction(state_n), self.model.shift(state_n)
+        self._cohesion_T = self.model.shear_cohesion(state_n)
         self.iterations = self.unconverged = 0
+        self.residual = 0.0
         for grp, data, cache in zip(self.stars.groups, self._data, self._cache):
-            x = self._solve_group(grp, data, cache, self.h * f[grp.comps], g_loc[grp.links],
+            x = self._solve_group(grp, data, cache, self.h * f[grp.comps], out[grp.comps], g_loc[grp.links],
                                   dg_loc[grp.links])
             out[grp.comps] = x
 
     def account(self, g_before, g_after):
-        """Add the energy the contact reactions of this step dissipated,
-        -sum weight r . (g_{n+1} - g_{n-1}) / 2 (its share of the discrete energy balance,
-        solver/imex.py), given the global-frame jumps g_{n-1} and g_{n+1} (n_links, gdim)."""
+        """Book the work the reactions of this step did, given the global-frame jumps
+        g_{n-1} and g_{n+1} (n_links, gdim): -sum weight r . (g_{n+1} - g_{n-1}) / 2, its
+        share of the discrete energy balance (solver/imex.py). The part of the contact
+        reaction r~_N = r_N + shift and the friction mu r~_N is dissipated by contact; the
+        cohesive part (-shift, and the shear cohesion's share of r_T) is stored in the
+        rigid links of the model (model.absorb)."""
         dg = np.einsum("lij,lj->li", self._frame, g_after - g_before)
-        self.contact_dissipated -= 0.5 * self.jump.links.weight @ np.sum(self.r * dg, axis=1)
+        r_N, r_T = self.r[:, 0], self.r[:, 1:]
+        pressed = np.maximum(r_N + self._shift, 0.0)
+        radius = self._mu * pressed + self._cohesion_T
+        friction_share = np.divide(self._mu * pressed, radius, out=np.ones_like(radius), where=radius > 0)
+        slip_work = np.sum(r_T * dg[:, 1:], axis=1)
+        weight = self.jump.links.weight
+        self.contact_dissipated -= 0.5 * weight @ ((r_N + self._shift) * dg[:, 0] + friction_share * slip_work)
+        self.model.absorb(-0.5 * (-self._shift * dg[:, 0] + (1 - friction_share) * slip_work))
 
-    def _solve_group(self, grp, data, cache, rhs, g_n, dg_pred):
+    def _solve_group(self, grp, data, cache, rhs, x_fixed, g_n, dg_pred):
         """Newton on the group's stars, each stopping on its own once its scaled residual
         is below rtol; a star still above it after max_iterations is counted unconverged.
 
@@ -97,20 +126,22 @@ class StarNewton:
         beta_n: the first step of a star whose beta_n has not changed uses its last
         Jacobian's inverse, which solves its piecewise-linear problem exactly when the
         pattern has not changed either (the residual check decides)."""
-        BR_all, weight_all, m_all, rho_all, fixed_all = data
+        BR_all, weight_all, m_all, rho_all, fixed_all, frozen_all = data
         inverse, cached = cache
         h, d = self.h, self.stars.gdim
         n_s, q = rhs.shape
         L = grp.links.shape[1]
         if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
-            return np.where(fixed_all, 0.0, rhs / m_all)
-        x = np.zeros((n_s, q))
+            self.reaction[grp.comps] = np.where(fixed_all, m_all * x_fixed - rhs, 0.0) / h
+            return np.where(fixed_all, x_fixed, rhs / m_all)
+        x = np.where(fixed_all, x_fixed, 0.0)  # Newton never moves the prescribed components
         r = np.where(grp.valid[..., None], self.r[grp.links], 0.0)
         state_n = self.model.state_at(grp.links)
-        mu = self.model.friction(state_n)
+        mu, shift, cohesion_T = self._mu[grp.links], self._shift[grp.links], self._cohesion_T[grp.links]
         todo = np.arange(n_s)
         for iteration in range(1, self.max_iterations + 1):
             BR, w, m, rho, fixed = BR_all[todo], weight_all[todo], m_all[todo], rho_all[todo], fixed_all[todo]
+            frozen = frozen_all[todo]
             valid = grp.valid[todo]
             Bx = np.matmul(BR, x[todo][:, :, None])[:, :, 0].reshape(-1, L, d)
             gbar = g_n[todo] + 0.25 * h * Bx
@@ -123,18 +154,24 @@ class StarNewton:
             rt = r[todo]
             t = (r_coh - rt) * w[..., None]
             R_m = m * x[todo] - rhs[todo] + h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
+            reaction = np.where(fixed, R_m / h, 0.0)
             R_m[fixed] = 0.0
             phi_N, phi_T, jac, _ = contact_friction_projection(
                 rt[..., 0].ravel(), rt[..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
-                slip[..., 1:].reshape(-1, d - 1), rho.ravel(), rho.ravel(), mu[todo].ravel(), 0.0)
+                slip[..., 1:].reshape(-1, d - 1), *(2 * [np.where(frozen, FROZEN * rho, rho).ravel()]),
+                mu[todo].ravel(), shift[todo].ravel(),
+                cohesion_T[todo].ravel())
             phi = np.concatenate([phi_N[:, None], phi_T], axis=1).reshape(-1, L, d)
             scale_m = np.maximum(np.abs(rhs[todo]).max(axis=1), np.abs(m * x[todo]).max(axis=1))
             scale_c = np.abs(rt).max(axis=(1, 2)) + (rho * np.abs(g_end[..., 0]) * valid).max(axis=1)
-            done = (np.abs(R_m).max(axis=1) <= self.rtol * scale_m) & \
-                   (np.abs(phi).max(axis=(1, 2)) <= self.rtol * scale_c)
+            scaled = np.maximum(_ratio(np.abs(R_m).max(axis=1), scale_m),
+                                _ratio(np.abs(phi).max(axis=(1, 2)), scale_c))
+            done = scaled <= self.rtol
+            self.residual = max(self.residual, scaled[done].max(initial=0.0))
             g_mid = g_n[todo] + 0.5 * slip  # (g_n + g_{n+1}) / 2, where the energy is stored
             self.model.store(grp.links[todo][done], law.state.reshape(-1, L)[done], valid[done],
                              g_mid[done][..., 0], g_mid[done][..., 1:])
+            self.reaction[grp.comps[todo[done]]] = reaction[done]
             self.iterations = max(self.iterations, iteration)
             if done.all():
                 break
@@ -146,7 +183,7 @@ class StarNewton:
             if fresh.any():
                 new = keep.copy()
                 new[keep] = fresh
-                J = self._jacobian(BR[new], w[new], m[new], fixed[new], law, jac, new, L)
+                J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new], law, jac, new, L)
                 inverse[todo[fresh]] = np.linalg.inv(J)
                 cached[todo[fresh]] = True
             delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
@@ -154,6 +191,7 @@ class StarNewton:
             r[todo] += delta[:, q:].reshape(-1, L, d)
         else:
             self.unconverged += len(todo)
+            self.residual = max(self.residual, scaled[keep].max())
             self.model.store(grp.links[todo], law.state.reshape(-1, L)[keep], grp.valid[todo],
                              g_mid[keep][..., 0], g_mid[keep][..., 1:])
         self.r[grp.links[grp.valid]] = r[grp.valid]
@@ -161,8 +199,9 @@ class StarNewton:
         cached[damaged.any(axis=1)] = False
         return x
 
-    def _jacobian(self, BR, w, m, fixed, law, jac, keep, L):
-        """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``."""
+    def _jacobian(self, BR, w, m, fixed, frozen, law, jac, keep, L):
+        """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``;
+        on frozen links, identity rows (see FROZEN)."""
         h, d = self.h, self.stars.gdim
         n, q = m.shape
         N = q + L * d
@@ -180,10 +219,22 @@ class StarNewton:
         rows = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, :, None])
         cols = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, None, :])
         J[:, rows, cols] = Jr
+        frozen_rows = np.repeat(frozen, d, axis=1)
+        J[:, q:, :][frozen_rows] = 0.0
+        J[:, q + np.arange(L * d), q + np.arange(L * d)] += frozen_rows
         J[:, :q, :][fixed] = 0.0
         J[:, :, :q] *= ~fixed[:, None, :]
         J[:, np.arange(q), np.arange(q)] += fixed
         return J
+
+
+class ConvergenceError(RuntimeError):
+    """Vertex stars whose Newton did not converge (the runner saves the state first)."""
+
+
+def _ratio(a, scale):
+    """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""
+    return np.divide(a, scale, out=np.where(a > 0, np.inf, 0.0), where=scale > 0)
 
 
 def _blocks(NN, NT, TN, TT):

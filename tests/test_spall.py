@@ -1,0 +1,59 @@
+"""1D spall (PHYSICS.md §3) with the built-in case spall-bar: where the first spall plane
+forms and how fast the spalled piece flies, against the closed forms."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfrag import analytic, homogenise, loads
+from dolfrag.config import load_case
+from dolfrag.runner import run
+
+
+@pytest.fixture(scope="module")
+def spall(tmp_path_factory):
+    case = load_case("spall-bar", ["output.fields=0", "output.figures=false"])
+    summary = run(case, tmp_path_factory.mktemp("spall"), quiet=True, comm=MPI.COMM_SELF)
+    # the wave speed of the discretisation run (bulk slowed by the interface springs)
+    c = analytic.wave_speed(homogenise.uniaxial_strain_modulus(case), case.material.rho)
+    return case, summary, c
+
+
+def test_first_spall_plane_forms_at_lambda_sigma_c_over_two_sigma_0(spall):
+    case, summary, c = spall
+    load, sigma_c = case.load, case.interface.sigma_c
+    wavelength = c * (load.duration - load.rise)  # the decaying part sets the tension
+    expected = analytic.triangular_spall_distance(wavelength, sigma_c, load.peak)
+    # the general criterion on the actual (ramped) signal agrees with the closed form
+    assert analytic.spall_distance(loads.signal(load), c, sigma_c, load.duration) == \
+        pytest.approx(expected, abs=c * load.duration / 2000)
+    breaks = summary["breaks"]
+    first_time = breaks[0]["time_s"]
+    first = [b["distance_from_free_end_m"] for b in breaks if b["time_s"] == first_time]
+    # issue 3's bound: one mesh size (planes are grid lines h apart) plus 10 %
+    assert np.all(np.abs(np.array(first) - expected) <= case.mesh.size + 0.1 * expected), first
+    # causality: no plane can break before the reflected peak reaches the predicted one
+    # (measured: 2.0 us after it, 0.8 us for the damage to start and 1.2 us to run through)
+    peak_at_free_end = load.rise + case.geometry.length / c
+    assert first_time > peak_at_free_end + (expected - case.mesh.size) / c
+
+
+def test_spalled_piece_flies_off_with_the_trapped_momentum(spall):
+    case, summary, c = spall
+    load, sigma_c = case.load, case.interface.sigma_c
+    frags = summary["fragments"]
+    plane = case.geometry.length - summary["breaks"][0]["distance_from_free_end_m"]
+    piece = np.array(frags["centroid"])[:, 0] > plane  # everything the first plane cut off
+    mass = np.array(frags["mass"])[piece]
+    velocity = mass @ np.array(frags["velocity"])[piece, 0] / mass.sum()
+    expected = analytic.triangular_scab_velocity(load.peak, sigma_c, case.material.rho, c)
+    # issue 3's bound, 15 %: the ramped front traps a little less momentum than the sharp
+    # one of the closed form (analytic.scab_velocity on the actual signal: -8 %)
+    assert velocity == pytest.approx(expected, rel=0.15)
+    assert velocity > 0  # away from the bar
+
+
+def test_spalling_closes_the_energy_balance(spall):
+    _, summary, _ = spall
+    # lagged damage books exactly the energy each break frees (solver/semismooth.py)
+    assert summary["balance_error_relative"] < 1e-10
+    assert summary["energies_J"]["D_damage_J"] > 0
