@@ -70,9 +70,13 @@ def test_damage_run_gives_the_same_broken_links_and_fragments_on_one_and_two_ran
     assert np.array_equal(one["broken_links"], two["broken_links"])
     frags_one, frags_two = summary_one["fragments"], summary_two["fragments"]
     assert frags_one["count"] > 1 and frags_one["count"] == frags_two["count"]
-    for key in ("mass", "centroid", "velocity"):
-        # same links broken, velocities to the Newton tolerance (1e-10 relative)
+    for key in ("mass", "centroid"):  # same links broken: same pieces, to round-off
         assert np.allclose(frags_one[key], frags_two[key], rtol=1e-8, atol=1e-12), key
+    # Each star stops at 1e-10 of its own terms, or of a millionth of the step's largest
+    # force (semismooth.FLOOR), so a slow piece's velocity is as accurate as 1e-10 of the
+    # fastest one's, not of its own (measured: 3e-10 m/s apart on 0.01 m/s, largest 0.33)
+    speed = np.abs(frags_one["velocity"]).max()
+    assert np.allclose(frags_one["velocity"], frags_two["velocity"], rtol=0, atol=1e-8 * speed)
     work = one["W_external_J"].max()
     for name in ("E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J"):
         # each star problem is monotone and solved to a relative residual of 1e-10 on

@@ -43,6 +43,7 @@ class Stars:
         dofs = dofs[order]
         _, start, size = np.unique(space.dof_vertex[dofs], return_index=True, return_counts=True)
         self.gdim = d
+        self.comm = space.mesh.comm
         self.groups = []
         self.comps = space.components(dofs)
         n_dofs = len(space.dof_vertex)

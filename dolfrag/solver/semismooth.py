@@ -23,6 +23,7 @@ step (mu (1 - beta_n) for RCCM), so its derivative is not needed. Each star stop
 own; a star still unconverged after the cap is counted and reported.
 """
 import numpy as np
+from mpi4py import MPI
 
 from dolfrag.interface.contact import contact_friction_projection
 
@@ -32,6 +33,22 @@ from dolfrag.interface.contact import contact_friction_projection
 # (so a prescribed opening releases the constraint at once) and iterated as a fixed
 # point: identity rows in the Jacobian.
 FROZEN = 1e6
+
+# Rigid constraints around a vertex are redundant: the jumps of an interior star sum to zero
+# around the vertex, so when every link sticks (a rigid threshold or linear-softening star,
+# or a frictional contact ring) the constraint rows lose rank and the exact Jacobian is
+# singular. The Newton matrix gets REGULARISATION on the reaction diagonal (d phi / d r):
+# the residual stays exact, so the solution does too; Newton converges at a rate of about
+# REGULARISATION per iteration instead of exactly, and picks one of the equivalent
+# reactions in the redundant directions (they do no work: same motion, same energies).
+REGULARISATION = 1e-6
+
+# Full Newton steps for this many iterations, then damped ones (a semi-smooth Newton can
+# cycle between active sets of contact and friction; measured on rigid laws).
+CYCLE = 20
+
+# Relative size below which a star's own scales give way to the step's largest (see solve).
+FLOOR = 1e-6
 
 
 class StarNewton:
@@ -94,6 +111,14 @@ class StarNewton:
         state_n = self.model.state_at(np.arange(len(self.r)))
         self._mu, self._shift = self.model.friction(state_n), self.model.shift(state_n)
         self._cohesion_T = self.model.shear_cohesion(state_n)
+        # A star far from the action (a millionth of the largest force or traction of this
+        # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
+        # (global, so that 1 and N ranks stop every star alike)
+        mine = np.array([self.h * np.abs(f).max(initial=0.0),
+                         max(np.abs(self.r).max(initial=0.0), np.abs(self._shift).max(initial=0.0))])
+        largest = np.empty(2)
+        self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
+        self._floor_m, self._floor_c = FLOOR * largest
         self.iterations = self.unconverged = 0
         self.residual = 0.0
         for grp, data, cache in zip(self.stars.groups, self._data, self._cache):
@@ -153,7 +178,8 @@ class StarNewton:
             r_coh = np.concatenate([law.r_N[:, None], law.r_T], axis=1).reshape(-1, L, d)
             rt = r[todo]
             t = (r_coh - rt) * w[..., None]
-            R_m = m * x[todo] - rhs[todo] + h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
+            interface_force = h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
+            R_m = m * x[todo] - rhs[todo] + interface_force
             reaction = np.where(fixed, R_m / h, 0.0)
             R_m[fixed] = 0.0
             phi_N, phi_T, jac, _ = contact_friction_projection(
@@ -162,10 +188,13 @@ class StarNewton:
                 mu[todo].ravel(), shift[todo].ravel(),
                 cohesion_T[todo].ravel())
             phi = np.concatenate([phi_N[:, None], phi_T], axis=1).reshape(-1, L, d)
-            scale_m = np.maximum(np.abs(rhs[todo]).max(axis=1), np.abs(m * x[todo]).max(axis=1))
-            scale_c = np.abs(rt).max(axis=(1, 2)) + (rho * np.abs(g_end[..., 0]) * valid).max(axis=1)
-            scaled = np.maximum(_ratio(np.abs(R_m).max(axis=1), scale_m),
-                                _ratio(np.abs(phi).max(axis=(1, 2)), scale_c))
+            scale_m = np.maximum(np.abs(rhs[todo]), np.maximum(np.abs(m * x[todo]), np.abs(interface_force))).max(axis=1)
+            # the terms phi is made of, so that their cancellation (a sticking link moving
+            # with its neighbours: slip = dg_pred + h B x ~ 0) sets no false floor
+            terms = np.abs(g_n[todo]) + np.abs(dg_pred[todo]) + h * np.abs(Bx)
+            scale_c = np.abs(rt).max(axis=(1, 2)) + (rho[..., None] * terms * valid[..., None]).max(axis=(1, 2))
+            scaled = np.maximum(_ratio(np.abs(R_m).max(axis=1), np.maximum(scale_m, self._floor_m)),
+                                _ratio(np.abs(phi).max(axis=(1, 2)), np.maximum(scale_c, self._floor_c)))
             done = scaled <= self.rtol
             self.residual = max(self.residual, scaled[done].max(initial=0.0))
             g_mid = g_n[todo] + 0.5 * slip  # (g_n + g_{n+1}) / 2, where the energy is stored
@@ -187,6 +216,8 @@ class StarNewton:
                 inverse[todo[fresh]] = np.linalg.inv(J)
                 cached[todo[fresh]] = True
             delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
+            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps
+                delta *= 0.5 ** (1 + iteration % 3)
             x[todo] += delta[:, :q]
             r[todo] += delta[:, q:].reshape(-1, L, d)
         else:
@@ -218,7 +249,7 @@ class StarNewton:
         J[:, q:, :q] = h * np.einsum("slij,sljq->sliq", Jg, BR4).reshape(n, L * d, q)
         rows = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, :, None])
         cols = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, None, :])
-        J[:, rows, cols] = Jr
+        J[:, rows, cols] = Jr + REGULARISATION * np.eye(d)
         frozen_rows = np.repeat(frozen, d, axis=1)
         J[:, q:, :][frozen_rows] = 0.0
         J[:, q + np.arange(L * d), q + np.arange(L * d)] += frozen_rows
