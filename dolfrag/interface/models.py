@@ -151,8 +151,12 @@ class _Rigid:
         return np.full(np.shape(state), float(self.mu))
 
     def absorb(self, work):
-        """Add the work (J/m^2, per owned link) the cohesive reactions did this step."""
-        self.work += work
+        """Add the work (J/m^2, per owned link) the cohesive reactions did this step: stored
+        in links still rigid, released in those that opened or broke during the step (their
+        state is already updated: store runs inside the step, absorb after it)."""
+        rigid = self.rigid()
+        self.work += np.where(rigid, work, 0.0)
+        self.released += np.where(rigid, 0.0, work)
 
     def dissipated(self):
         return self.released
@@ -194,6 +198,9 @@ class Threshold(_Rigid):
         self.released[newly] += self.work[newly]
         self.work[newly] = 0.0
         self.lost[idx] = broken
+
+    def rigid(self):
+        return self.lost == 0
 
     def stored_energy(self, g_N, g_T):
         return np.where(self.lost > 0, 0.0, self.work)
@@ -268,6 +275,9 @@ class LinearSoftening(_Rigid):
                                        0.5 * (self.secant(old) - S_new) * psi * (old > 0))
         self.work[idx[opening]] = 0.0
         self.delta_max[idx] = new
+
+    def rigid(self):
+        return self.delta_max == 0
 
     def stored_energy(self, g_N, g_T):
         rigid = self.delta_max == 0
