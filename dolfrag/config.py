@@ -76,9 +76,10 @@ class CaseError(ValueError):
 _REQ = object()  # spec default meaning "required"
 _OPS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}
 _NOUNS = {"float": "a number", "int": "an integer", "str": "a string",
-          "bool": "true or false", "names": "a list of strings", "path": "a path to a file"}
+          "bool": "true or false", "names": "a list of strings", "path": "a path to a file",
+          "numbers": "a list of numbers"}
 _TYPES = {"float": (int, float), "int": (int, float), "str": str, "bool": bool, "names": list,
-          "path": str}
+          "path": str, "numbers": list}
 
 
 @dataclass(frozen=True)
@@ -139,6 +140,11 @@ def _convert(key: str, value: Any, spec: _Spec, base: Path) -> Any:
         if not all(isinstance(name, str) for name in value):
             raise bad
         value = tuple(value)
+    if kind == "numbers":
+        if not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                   and spec.admits(x) for x in value):
+            raise bad
+        value = tuple(sorted(float(x) for x in value))
     if spec.choices and value not in spec.choices:
         raise bad
     if kind == "path":
@@ -296,6 +302,8 @@ class Output:
     every: int = _f("int", 10, bounds=">= 1")     # steps between rows of history.csv, >= 1
     fields: int = _f("int", 10, bounds=">= 0")    # field snapshots over the run, >= 0 (0 = none)
     figures: bool = _f("bool", True)              # write figures at the end
+    # times at which the fragments are also reported (summary.json "fragments_at")
+    fragments_at: tuple[float, ...] = _f("numbers", (), bounds=">= 0", unit="s")
 
 
 @dataclass(frozen=True)

@@ -125,6 +125,11 @@ def run(case, out, quiet=False, comm=None):
                "status": "running"}
     max_error, max_work, energies = 0.0, 0.0, None
     break_time = np.full(len(links), np.nan)  # s, when each link broke
+    pending = list(case.output.fragments_at)  # s, times still to report fragments at
+
+    def current_fragments():
+        return fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array,
+                         break_time)
     try:
         if 0 in snapshots:
             write_fields(0.0)
@@ -147,6 +152,9 @@ def run(case, out, quiet=False, comm=None):
                 max_work = max(max_work, abs(energies.external_work))
             if k in snapshots:
                 write_fields(integ.t)
+            while pending and integ.t >= pending[0] - integ.h / 2:  # the step nearest to it
+                summary.setdefault("fragments_at", []).append(
+                    {"requested_time_s": pending.pop(0), "time_s": integ.t, **current_fragments().to_dict()})
             progress.update(k)
         summary["status"] = "completed"
     except BaseException as err:
@@ -162,8 +170,7 @@ def run(case, out, quiet=False, comm=None):
         summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
         output.summary(summary)
         output.close()
-    frags = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array,
-                      break_time)
+    frags = current_fragments()
     summary["fragments"] = frags.to_dict()
     free_end = _free_end(case)
     if free_end is not None:

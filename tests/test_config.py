@@ -138,6 +138,13 @@ def test_table_load_relative_to_case_dir(tmp_path, monkeypatch):
     (TABLE, "0,0\n1e-5,1\n1e-5,0\n", "load.file * line 3"),
     (TABLE, "0,0,0\n1,1,1\n", "load.file * line 2"),
     (TABLE, "t,p\n0,0\n", "load.file"),
+    ({"output.fragments_at": [1e-5, -1.0]}, None, "output.fragments_at"),
+    ({"output.fragments_at": 1e-5}, None, "output.fragments_at"),
+    ({"output.fragments_at": [True]}, None, "output.fragments_at"),
+    ({"interface.law": "threshold", "interface.R_c": 1e6}, None, "interface.W_eth"),
+    ({"interface.law": "linear_softening", "interface.G_c": 50.0}, None, "interface.sigma_c"),
+    ({"interface.law": "rccm", "interface.sigma_c": 1e6, "interface.G_c": 50.0}, None, "interface.G_c"),
+    ({"interface.law": "rccm", "interface.sigma_c": 1e6, "interface.R_c": 1e6}, None, "interface.R_c"),
 ])
 def test_invalid_case_raises_one_line_error(tmp_path, changes, csv, key):
     with pytest.raises(CaseError) as info:

@@ -11,7 +11,8 @@ from dolfrag.runner import run
 
 @pytest.fixture(scope="module")
 def spall(tmp_path_factory):
-    case = load_case("spall-bar", ["output.fields=0", "output.figures=false"])
+    case = load_case("spall-bar", ["output.fields=0", "output.figures=false",
+                                   "output.fragments_at=[1.2e-4, 1.0e-4]"])
     summary = run(case, tmp_path_factory.mktemp("spall"), quiet=True, comm=MPI.COMM_SELF)
     # the wave speed of the discretisation run (bulk slowed by the interface springs)
     c = analytic.wave_speed(homogenise.uniaxial_strain_modulus(case), case.material.rho)
@@ -57,3 +58,14 @@ def test_spalling_closes_the_energy_balance(spall):
     # lagged damage books exactly the energy each break frees (solver/semismooth.py)
     assert summary["balance_error_relative"] < 1e-10
     assert summary["energies_J"]["D_damage_J"] > 0
+
+
+def test_fragments_are_reported_at_the_requested_times(spall):
+    case, summary, _ = spall
+    at = summary["fragments_at"]
+    assert [a["requested_time_s"] for a in at] == [1.0e-4, 1.2e-4]  # sorted
+    for a in at:  # the step nearest to each time
+        assert abs(a["time_s"] - a["requested_time_s"]) <= summary["dt_s"] / 2 * (1 + 1e-9)
+    # before the first plane breaks (103 us) the bar is whole; after, the end piece is off
+    assert at[0]["count"] == 1 and at[1]["count"] > 1
+    assert summary["breaks"][0]["time_s"] < at[1]["time_s"]

@@ -119,8 +119,9 @@ class StarNewton:
         # A star far from the action (a millionth of the largest force or traction of this
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
         # (global, so that 1 and N ranks stop every star alike)
-        mine = np.array([self.h * np.abs(f).max(initial=0.0),
-                         max(np.abs(self.r).max(initial=0.0), np.abs(self._shift).max(initial=0.0))])
+        force = np.abs(f).max(initial=0.0)  # N, and as a traction on the largest link (Pa)
+        mine = np.array([self.h * force, max(np.abs(self.r).max(initial=0.0), np.abs(self._shift).max(initial=0.0),
+                                             force / max(self.jump.links.weight.max(initial=0.0), 1e-300))])
         largest = np.empty(2)
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self._floor_m, self._floor_c = FLOOR * largest
