@@ -166,7 +166,11 @@ class StarNewton:
             self.reaction[grp.comps] = np.where(fixed_all, m_all * x_fixed - rhs, 0.0) / h
             return np.where(fixed_all, x_fixed, rhs / m_all)
         x = np.where(fixed_all, x_fixed, 0.0)  # Newton never moves the prescribed components
-        r = np.where(grp.valid[..., None], self.r[grp.links], 0.0)
+        # reactions start from zero, not from the last step: around a rigid star they are
+        # determined only up to self-equilibrated rings (see REGULARISATION), which a warm
+        # start carried from step to step until they choked the friction cones (measured:
+        # threshold and linear-softening runs then failed to converge; cold, they complete)
+        r = np.zeros(grp.links.shape + (d,))
         state_n = self.model.state_at(grp.links)
         mu, shift, cohesion_T = self._mu[grp.links], self._shift[grp.links], self._cohesion_T[grp.links]
         todo = np.arange(n_s)
