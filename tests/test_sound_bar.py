@@ -69,7 +69,13 @@ BOX_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--s
 
 
 INTACT_RCCM = ["--set", "interface.law=rccm", "--set", "interface.sigma_c=1e9", "--set", "mesh.size=0.004"]
-VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM}
+# the rigid laws, breaking at the free end (sigma_c below the reflected 1 MPa)
+SOFTENING = ["--set", "interface.law=linear_softening", "--set", "interface.sigma_c=4e5",
+             "--set", "interface.G_c=0.05", "--set", "mesh.size=0.004"]
+THRESHOLD = ["--set", "interface.law=threshold", "--set", "interface.R_c=4e5",
+             "--set", "interface.W_eth=1e-7", "--set", "mesh.size=0.004"]
+VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM, "linear-softening": SOFTENING,
+            "threshold": THRESHOLD}
 
 
 @pytest.mark.mpi
@@ -83,6 +89,8 @@ def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
     work = one["W_external_J"].max()
     speed = max(np.abs(one[name]).max() for name in one.dtype.names if name.startswith("v"))
     assert np.abs(one["balance_error_J"]).max() < 1e-10 * work  # exact discrete balance, 2D and 3D
+    if variant in ("linear-softening", "threshold"):  # links break, and the same on both layouts
+        assert one["broken_links"].max() > 10 and one["newton_unconverged"].max() == 0
     for name in one.dtype.names:
         if name.startswith("newton"):
             continue  # solver diagnostics: iteration counts follow round-off, not physics
