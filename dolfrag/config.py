@@ -56,7 +56,7 @@ import numpy as np
 
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-LAWS = ("elastic", "rccm", "threshold", "linear_softening")
+LAWS = ("elastic", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 SIGNALS = ("triangular", "table")
 SCHEMES = ("imex",)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
@@ -188,8 +188,8 @@ _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several f
 _IMPORTED = ("kind", "file")
 _TRIANGLE = ("signal", "triangular")
 _RCCM = ("law", "rccm")
-_STRENGTH = ("law", "rccm", "linear_softening")
-_FRICTIONAL = ("law", "rccm", "threshold", "linear_softening")
+_STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
+_FRICTIONAL = ("law", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 
 
 @dataclass(frozen=True)
@@ -241,11 +241,12 @@ class Interface:
     C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
     stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
     # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both;
-    # linear_softening: sigma_c (rigid up to it) and G_c
+    # rccm_decoupled: sigma_c and G_c independent of C_N; linear_softening: sigma_c (rigid up
+    # to it) and G_c
     sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=_STRENGTH)
     w: float | None = _f("float", None, bounds="> 0", unit="J/m^2", when=_RCCM)
     b: float | None = _f("float", 0.0, bounds=">= 0", unit="J s/m^2", when=_RCCM)  # 0: rate-independent
-    G_c: float | None = _f("float", bounds="> 0", unit="J/m^2", when=("law", "linear_softening"))
+    G_c: float | None = _f("float", bounds="> 0", unit="J/m^2", when=("law", "rccm_decoupled", "linear_softening"))
     # threshold: rigid, tension up to R_c while the gap stays below W_eth
     R_c: float | None = _f("float", bounds="> 0", unit="Pa", when=("law", "threshold"))
     W_eth: float | None = _f("float", bounds="> 0", unit="m", when=("law", "threshold"))
@@ -383,9 +384,15 @@ def _check(case: Case) -> None:
     if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
         raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
                         "rccm needs exactly one of them (Pa, J/m^2)")
-    if law.law == "linear_softening" and law.sigma_c is None:
-        raise CaseError("interface.sigma_c: missing (required when interface.law is "
-                        "'linear_softening'), Pa")
+    if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
+        raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
+                        f"{law.law!r}), Pa")
+    if law.law == "rccm_decoupled":
+        C_N = law.stiffness(case.material.E, case.mesh.size)[0]
+        if C_N <= law.sigma_c**2 / (2 * law.G_c):
+            raise CaseError(f"interface.G_c = {law.G_c!r}: rccm_decoupled needs C_N > sigma_c^2 / "
+                            f"(2 G_c), i.e. G_c > {law.sigma_c**2 / (2 * C_N):.3g} J/m^2 with C_N = "
+                            f"{C_N:.3g} Pa/m (or raise interface.C_N / stiffness_ratio)")
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")

@@ -37,6 +37,8 @@ def interface_step(interface, E, size, stars, jump, m, h):
         model = models.Threshold(n, interface.R_c, interface.W_eth, interface.mu)
     elif interface.law == "linear_softening":
         model = models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu)
+    elif interface.law == "rccm_decoupled":
+        model = models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu)
     else:
         model = models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
     return StarNewton(stars, jump, model, m, h)

@@ -145,6 +145,8 @@ def test_table_load_relative_to_case_dir(tmp_path, monkeypatch):
     ({"interface.law": "linear_softening", "interface.G_c": 50.0}, None, "interface.sigma_c"),
     ({"interface.law": "rccm", "interface.sigma_c": 1e6, "interface.G_c": 50.0}, None, "interface.G_c"),
     ({"interface.law": "rccm", "interface.sigma_c": 1e6, "interface.R_c": 1e6}, None, "interface.R_c"),
+    ({"interface.law": "rccm_decoupled", "interface.sigma_c": 1e7, "interface.G_c": 1e-6}, None,
+     "interface.G_c * C_N > sigma_c^2 / (2 G_c)"),
 ])
 def test_invalid_case_raises_one_line_error(tmp_path, changes, csv, key):
     with pytest.raises(CaseError) as info:

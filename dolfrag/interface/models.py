@@ -89,12 +89,16 @@ class Rccm:
         in the same run (measured). Lagged, each star problem is monotone (unique), and the
         energy the drop beta_n -> beta frees is booked exactly (store)."""
         secant = beta_n**2
-        beta = laws.rccm(g_N, g_T, beta_n, self.C_N, self.C_T, self.w, self.b, self.h)[-1]
+        beta = self.envelope(g_N, g_T, beta_n)
         m = g_T.shape[1]
         zeros = np.zeros((len(beta), m))
         return Cohesion(secant * self.C_N * np.maximum(g_N, 0.0), secant[:, None] * self.C_T * g_T,
                         secant * self.C_N * (g_N > 0), secant[:, None, None] * self.C_T * np.eye(m),
                         zeros, zeros, beta)
+
+    def envelope(self, g_N, g_T, beta_n):
+        """The damage the law gives at the jumps g_N, g_T from beta_n."""
+        return laws.rccm(g_N, g_T, beta_n, self.C_N, self.C_T, self.w, self.b, self.h)[-1]
 
     def store(self, links, state, valid, g_N, g_T):
         """Accept the converged state of the links (n, L) where valid (n, L); g_N (n, L),
@@ -124,6 +128,23 @@ class Rccm:
     def damage(self):
         """1 - beta per link: 0 sound, 1 broken."""
         return 1.0 - self.beta
+
+
+class RccmDecoupled(Rccm):
+    """RCCM springs whose strength sigma_c (Pa) and toughness G_c (J/m^2) are independent
+    of C_N (laws.rccm_decoupled, in the spirit of LMGC90's MP3_CZM): the effective traction
+    rises to sigma_c, then falls linearly to zero at 2 G_c / sigma_c. Everything else
+    (lagged secant, contact, friction mu (1 - beta), energy booking) is Rccm's."""
+
+    def __init__(self, n_links, C_N, C_T, sigma_c, G_c, mu=0.0):
+        super().__init__(n_links, C_N, C_T, w=G_c, mu=mu)
+        self.sigma_c, self.G_c = sigma_c, G_c
+
+    def envelope(self, g_N, g_T, beta_n):
+        return laws.rccm_decoupled(g_N, g_T, beta_n, self.C_N, self.C_T, self.sigma_c, self.G_c)[-1]
+
+    def broken(self):
+        return self.beta <= 0.0
 
 
 # A rigid link counts as opened once its mid-step jump exceeds this fraction of the law's
