@@ -173,6 +173,10 @@ def run(case, out, quiet=False, comm=None):
         output.summary(summary)
         output.close()
     frags = current_fragments()
+    axes = "xyz"[:space.gdim]
+    output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
+                 np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
+                                  integ.model.damage(), integ.model.broken(), break_time]))
     summary["fragments"] = frags.to_dict()
     free_end = _free_end(case)
     if free_end is not None:

@@ -48,9 +48,15 @@ def fragmenting_runs(tmp_path_factory):
     mpirun([*args, "--out", out / "one"], n=1)
     mpirun([*args, "--out", out / "two"], n=2)
     for run in ("one", "two"):
-        assert {"fields.pvd", "figures"} <= {p.name for p in (out / run).iterdir()}
+        assert {"fields.pvd", "figures", "links.csv"} <= {p.name for p in (out / run).iterdir()}
         assert (out / run / "figures" / "damage.png").stat().st_size > 0
-    return [(history(out / r), json.loads((out / r / "summary.json").read_text())) for r in ("one", "two")]
+    runs = Runs((history(out / r), json.loads((out / r / "summary.json").read_text())) for r in ("one", "two"))
+    runs.out = out
+    return runs
+
+
+class Runs(list):
+    """(history, summary) of the 1- and 2-rank runs, and their directory ``out``."""
 
 
 @pytest.mark.mpi
@@ -68,6 +74,14 @@ def test_damage_closes_the_energy_balance_with_the_released_energy(fragmenting_r
 def test_damage_run_gives_the_same_broken_links_and_fragments_on_one_and_two_ranks(fragmenting_runs):
     (one, summary_one), (two, summary_two) = fragmenting_runs
     assert np.array_equal(one["broken_links"], two["broken_links"])
+    # links.csv: one row per link, gathered from the ranks; the same broken links, broken at
+    # the same steps, wherever they sit
+    tables = [np.genfromtxt(fragmenting_runs.out / r / "links.csv", delimiter=",", names=True)
+              for r in ("one", "two")]
+    keys = [np.lexsort((t["nx"], t["y"], t["x"])) for t in tables]
+    for name in ("x", "y", "broken", "break_time_s"):
+        assert np.allclose(tables[0][name][keys[0]], tables[1][name][keys[1]], equal_nan=True, rtol=1e-12), name
+    assert tables[0]["broken"].sum() == summary_one["broken_links"]
     frags_one, frags_two = summary_one["fragments"], summary_two["fragments"]
     assert frags_one["count"] > 1 and frags_one["count"] == frags_two["count"]
     for key in ("mass", "centroid"):  # same links broken: same pieces, to round-off

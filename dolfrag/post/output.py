@@ -52,6 +52,14 @@ class RunOutput:
             compat.scatter_forward(f)
         (vtk or self._vtk).write_function(functions, t)
 
+    def links(self, columns, rows):
+        """links.csv: one row per link, gathered from every rank (rank 0 writes).
+        Collective; rows (n_owned_links, len(columns)) floats."""
+        everyone = self.comm.gather(np.asarray(rows, dtype=float), root=0)
+        if self.comm.rank == 0:
+            np.savetxt(self.out / "links.csv", np.concatenate(everyone), delimiter=",",
+                       header=",".join(columns), comments="", fmt="%.9g")
+
     def failure(self, write):
         """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""
         vtk = compat.vtk_file(self.comm, self.out / "failure.pvd")
