@@ -1,7 +1,12 @@
-"""Cost of the `imex` step: ns per element-step and peak memory.
+"""Cost of a time step: ns per element-step and peak memory.
 
     python benchmarks/step_cost.py [--cells 10000 100000] [--steps 200] [--law elastic|rccm]
+                                   [--scheme imex|theta] [--h-factor 1]
     mpirun -n 2 python benchmarks/step_cost.py
+
+--scheme theta times the Moreau-Jean step (solver/theta.py, theta = 1/2) at h-factor times
+the imex step, after 5 warm-up steps (the first include MUMPS' symbolic analysis), and
+reports its mean Newton iterations per step.
 
 A 2D plane-strain bar (the sound-bar case, refined to about the requested number of
 triangles) under its pulse. Times only the time loop (setup excluded) and, for the
@@ -17,8 +22,10 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
+from dolfrag import loads
 from dolfrag.config import load_case
 from dolfrag.runner import setup
+from dolfrag.solver.theta import Theta
 
 # gmsh's frontal mesher puts about 2.33 A / h^2 triangles in an area A (measured).
 TRIANGLES_PER_AREA_H2 = 2.33
@@ -36,17 +43,20 @@ def timed(fn, repeat, comm):
 LAWS = {"elastic": [], "rccm": ["interface.law=rccm", "interface.sigma_c=4e5"]}
 
 
-def measure(cells, steps, comm, law):
+def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0):
     case = load_case("sound-bar")
     area = case.geometry.length * case.geometry.width
     size = np.sqrt(TRIANGLES_PER_AREA_H2 * area / cells)
     case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *LAWS[law]])
     domain, space, links, integ, _, _ = setup(case, comm)
     n_cells = space.mesh.topology.index_map(2).size_global
+    if scheme == "theta":
+        return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),
+                                        steps, comm, h_factor))
     integ.step()  # warm-up
     per_step = timed(integ.step, steps, comm)
     u = integ.u.x.array
-    rss = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024
+    rss = peak_memory(comm)
     if law != "elastic":
         broken = comm.allreduce(int(integ.model.broken().sum()))
         iterations = comm.allreduce(integ.interface.iterations, op=MPI.MAX)
@@ -61,19 +71,43 @@ def measure(cells, steps, comm, law):
     return n_cells, per_step, breakdown, rss
 
 
+def peak_memory(comm):
+    """Largest peak resident memory over the ranks, MB."""
+    return comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024
+
+
+def measure_theta(imex, load, steps, comm, h_factor):
+    """The theta step on the imex integrator's mesh and model, h_factor times its step."""
+    integ = Theta(imex.space, imex.bulk, imex.jump, imex.model, load, imex.pressure, h_factor * imex.h, 0.5,
+                  imex.interface.stars.constrained)
+    for _ in range(5):
+        integ.step()
+    iterations = []
+
+    def step():
+        integ.step()
+        iterations.append(integ.interface.iterations)
+    per_step = timed(step, steps, comm)
+    broken = comm.allreduce(int(integ.model.broken().sum()))
+    return per_step, (f"h = {integ.h:.3g} s, {np.mean(iterations):.1f} Newton iterations/step, "
+                      f"{broken} broken links"), peak_memory(comm)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cells", type=int, nargs="+", default=[10_000, 100_000])
     parser.add_argument("--steps", type=int, default=200)
     parser.add_argument("--law", choices=sorted(LAWS), default="elastic")
+    parser.add_argument("--scheme", choices=("imex", "theta"), default="imex")
+    parser.add_argument("--h-factor", type=float, default=1.0, help="theta step / imex step")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        print(f"imex step, 2D plane strain, {args.law} interfaces, {comm.size} rank(s)")
+        print(f"{args.scheme} step, 2D plane strain, {args.law} interfaces, {comm.size} rank(s)")
         print(f"{'cells':>8s} {'ms/step':>8s} {'ns/elem-step':>13s} {'peak MB/rank':>13s}  "
               "breakdown ns/elem-step (wall) / notes")
     for target in args.cells:
-        n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law)
+        n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law, args.scheme, args.h_factor)
         if comm.rank == 0:
             print(f"{n_cells:8d} {1e3 * per_step:8.2f} {1e9 * per_step / n_cells:13.0f} {rss:13.0f}  {breakdown}")
 

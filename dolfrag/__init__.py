@@ -11,6 +11,13 @@ try:
 except ImportError:
     pass
 
+import os
+
+# One OpenMP thread per process for MUMPS (the theta step's LU): set before petsc4py loads,
+# which threadpoolctl cannot reach; two threads per rank on these 2-core machines made the
+# factorisation 1.5x slower (measured).
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 try:
     # One BLAS thread per process: MPI ranks already fill the cores, and threaded
     # OpenBLAS inverts the small star blocks 1,500x slower (20 s against 14 ms for

@@ -58,7 +58,7 @@ GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
 LAWS = ("elastic", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 SIGNALS = ("triangular", "table")
-SCHEMES = ("imex",)
+SCHEMES = ("imex", "theta")
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
 
@@ -294,7 +294,11 @@ class Time:
     """[time]"""
     end: float = _f("float", bounds="> 0", unit="s")              # final time [s], > 0
     scheme: str = _f("str", "imex", choices=SCHEMES)              # one of SCHEMES
-    cfl: float = _f("float", 0.9, bounds="> 0, <= 1")             # safety factor on bulk dt, (0, 1]
+    cfl: float = _f("float", 0.9, bounds="> 0, <= 1")             # imex: safety factor on bulk dt, (0, 1]
+    # theta (Moreau-Jean, unconditionally stable): the step, default set by accuracy (the
+    # load's shortest feature / 20), and theta (1/2 conserves energy, > 1/2 damps)
+    dt: float | None = _f("float", None, bounds="> 0", unit="s", when=("scheme", "theta"))
+    theta: float | None = _f("float", 0.5, bounds=">= 0.5, <= 1", when=("scheme", "theta"))
 
 
 @dataclass(frozen=True)
@@ -384,6 +388,9 @@ def _check(case: Case) -> None:
     if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
         raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
                         "rccm needs exactly one of them (Pa, J/m^2)")
+    if case.time.scheme == "theta" and law.law in ("threshold", "linear_softening"):
+        raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
+                        "(the rigid laws run with 'imex')")
     if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
         raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
                         f"{law.law!r}), Pa")

@@ -21,26 +21,33 @@ from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
 from dolfrag.solver.semismooth import ConvergenceError, StarNewton
+from dolfrag.solver.theta import Theta, accuracy_time_step
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J",
-                  "W_external_J", "balance_error_J"]
-ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "external_work", "balance_error"]
+                  "D_numerical_J", "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "numerical", "external_work",
+                 "balance_error"]
+
+
+def interface_model(interface, E, size, n, h):
+    """The model of ``interface`` (config.Interface) on n links; h (s) for viscous RCCM."""
+    C_N, C_T = interface.stiffness(E, size)
+    if interface.law == "elastic":
+        return models.Elastic(n, C_N, C_T)
+    if interface.law == "threshold":
+        return models.Threshold(n, interface.R_c, interface.W_eth, interface.mu)
+    if interface.law == "linear_softening":
+        return models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu)
+    if interface.law == "rccm_decoupled":
+        return models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu)
+    return models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
 
 
 def interface_step(interface, E, size, stars, jump, m, h):
-    """The model of ``interface`` (config.Interface) and its star step solver."""
-    C_N, C_T = interface.stiffness(E, size)
-    n = len(jump.links)
+    """The model of ``interface`` (config.Interface) and its imex star step solver."""
+    model = interface_model(interface, E, size, len(jump.links), h)
     if interface.law == "elastic":
-        return ElasticSprings(stars, jump, models.Elastic(n, C_N, C_T), m, h)
-    if interface.law == "threshold":
-        model = models.Threshold(n, interface.R_c, interface.W_eth, interface.mu)
-    elif interface.law == "linear_softening":
-        model = models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu)
-    elif interface.law == "rccm_decoupled":
-        model = models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu)
-    else:
-        model = models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
+        return ElasticSprings(stars, jump, model, m, h)
     return StarNewton(stars, jump, model, m, h)
 
 
@@ -57,12 +64,22 @@ def setup(case, comm):
     bulk_ops = bulk.assemble(space, domain, case)
     links = link_table.build(space)
     stars = Stars(space, links, supports.constrained_components(space, domain, case.supports))
-    n_steps = math.ceil(case.time.end / (case.time.cfl * bulk_ops.dt_crit))
-    h = case.time.end / n_steps
+    time = case.time
+    if time.scheme == "theta":  # unconditionally stable: the step follows accuracy, not dt_crit
+        h = time.dt or accuracy_time_step(case.load, time.end)
+    else:
+        h = time.cfl * bulk_ops.dt_crit
+    n_steps = math.ceil(time.end / h)
+    h = time.end / n_steps
     jump = Jump(space, links)
-    step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
     load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-    integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h)
+    if time.scheme == "theta":
+        model = interface_model(case.interface, case.material.E, case.mesh.size, len(links), h)
+        integrator = Theta(space, bulk_ops, jump, model, load, loads.signal(case.load), h, time.theta,
+                           stars.constrained)
+    else:
+        step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
+        integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h)
     return domain, space, links, integrator, n_steps, bulk_ops.dt_crit
 
 
@@ -77,15 +94,15 @@ def _probes(space, domain):
     return probes
 
 
-def _fail(integ, output, write_fields, comm):
-    """Save the state of a step whose Newton failed (failure.pvd), then raise. Collective."""
+def _check_converged(integ, comm):
+    """Raise ConvergenceError if a star's Newton failed this step (imex). Collective."""
     stars = comm.allreduce(integ.interface.unconverged)
-    residual = comm.allreduce(integ.interface.residual, op=MPI.MAX)
-    output.failure(lambda out: write_fields(integ.t, out))
-    raise ConvergenceError(
-        f"t = {integ.t:.6g} s (step {integ.n}): {stars} vertex star(s) did not converge in "
-        f"{integ.interface.max_iterations} Newton iterations (worst scaled residual {residual:.3g}, "
-        f"tolerance {integ.interface.rtol:g}); the state is saved in failure.pvd")
+    if stars:
+        residual = comm.allreduce(integ.interface.residual, op=MPI.MAX)
+        raise ConvergenceError(
+            f"t = {integ.t:.6g} s (step {integ.n}): {stars} vertex star(s) did not converge in "
+            f"{integ.interface.max_iterations} Newton iterations (worst scaled residual {residual:.3g}, "
+            f"tolerance {integ.interface.rtol:g}); the state is saved in failure.pvd")
 
 
 def _free_end(case):
@@ -137,17 +154,20 @@ def run(case, out, quiet=False, comm=None):
             write_fields(0.0)
         for k in range(1, n_steps + 1):
             t_n = integ.t
-            energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
-            if integ.model.can_break:
-                break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
-                if comm.allreduce(integ.interface.unconverged):
-                    _fail(integ, output, write_fields, comm)
+            try:
+                energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
+                if integ.model.can_break:
+                    break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
+                    _check_converged(integ, comm)
+            except ConvergenceError:
+                output.failure(lambda vtk: write_fields(integ.t, vtk))  # the state, for a look
+                raise
             if energies is not None:
                 probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
                 newton = [comm.allreduce(integ.interface.iterations, op=MPI.MAX),
                           comm.allreduce(integ.interface.unconverged, op=MPI.SUM),
                           comm.allreduce(integ.interface.residual, op=MPI.MAX)]
-                output.row([k, t_n + integ.h / 2, integ.pressure(t_n),
+                output.row([k, integ.energy_time, integ.pressure(t_n),
                             *(getattr(energies, a) for a in ENERGY_FIELDS), energies.broken_links, *newton,
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])
                 max_error = max(max_error, abs(energies.balance_error))

@@ -90,3 +90,10 @@ def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift
                              zeros, dT_drN, dT_drT, zeros, dT_dgT)
     status = np.where(contact, np.where(stick, STICK, SLIP), OPEN)
     return phi_N, phi_T, jac, status
+
+
+def link_blocks(NN, NT, TN, TT):
+    """Link-frame d x d blocks [[NN, NT], [TN, TT]] from (n, L), (n, L, m), (n, L, m), (n, L, m, m)."""
+    top = np.concatenate([NN[..., None], NT], axis=-1)[..., None, :]
+    bottom = np.concatenate([TN[..., None], TT], axis=-1)
+    return np.concatenate([top, bottom], axis=-2)

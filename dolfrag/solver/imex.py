@@ -32,7 +32,7 @@ from dolfrag.interface import laws
 
 @dataclass
 class Energies:
-    """Global energies (J, or J/m in 2D) at t_{n+1/2}, and the broken-link count."""
+    """Global energies (J, or J/m in 2D) at the integrator's energy_time, and the broken-link count."""
     kinetic: float
     bulk: float
     interface: float
@@ -40,10 +40,12 @@ class Energies:
     contact: float
     external_work: float
     broken_links: int
+    numerical: float = 0.0  # dissipated by the time scheme itself (theta > 1/2; 0 for imex)
 
     @property
     def balance_error(self):
-        return self.kinetic + self.bulk + self.interface + self.damage + self.contact - self.external_work
+        return (self.kinetic + self.bulk + self.interface + self.damage + self.contact + self.numerical
+                - self.external_work)
 
 
 class ElasticSprings:
@@ -110,6 +112,11 @@ class Imex:
             raise ValueError("impose: every component must be held by a support "
                              "(supports.clamped or supports.rollers)")
         self._imposed = (comps, velocity)
+
+    @property
+    def energy_time(self):
+        """Time (s) of the Energies step() returns: t_{n+1/2}, the mid-step of the last step."""
+        return self.t - self.h / 2
 
     def step(self, energies=False):
         """Advance from t_n to t_{n+1}. With ``energies``, return the Energies at

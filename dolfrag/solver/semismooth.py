@@ -25,7 +25,7 @@ own; a star still unconverged after the cap is counted and reported.
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.interface.contact import contact_friction_projection
+from dolfrag.interface.contact import contact_friction_projection, link_blocks
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -248,9 +248,9 @@ class StarNewton:
         n, q = m.shape
         N = q + L * d
         pick = lambda a: a.reshape(-1, L, *a.shape[1:])[keep]  # noqa: E731
-        D = _blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
-        Jg = _blocks(pick(jac.dN_dgN), pick(jac.dN_dgT), pick(jac.dT_dgN), pick(jac.dT_dgT))
-        Jr = _blocks(pick(jac.dN_drN), pick(jac.dN_drT), pick(jac.dT_drN), pick(jac.dT_drT))
+        D = link_blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
+        Jg = link_blocks(pick(jac.dN_dgN), pick(jac.dN_dgT), pick(jac.dT_dgN), pick(jac.dT_dgT))
+        Jr = link_blocks(pick(jac.dN_drN), pick(jac.dN_drT), pick(jac.dT_drN), pick(jac.dT_drT))
         BR4 = BR.reshape(n, L, d, q)
         J = np.zeros((n, N, N))
         WDB = np.einsum("sl,slij,sljq->sliq", w, D, BR4).reshape(n, L * d, q)
@@ -277,10 +277,3 @@ class ConvergenceError(RuntimeError):
 def _ratio(a, scale):
     """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""
     return np.divide(a, scale, out=np.where(a > 0, np.inf, 0.0), where=scale > 0)
-
-
-def _blocks(NN, NT, TN, TT):
-    """Link-frame d x d blocks [[NN, NT], [TN, TT]] from (n, L), (n, L, m), (n, L, m), (n, L, m, m)."""
-    top = np.concatenate([NN[..., None], NT], axis=-1)[..., None, :]
-    bottom = np.concatenate([TN[..., None], TT], axis=-1)
-    return np.concatenate([top, bottom], axis=-2)

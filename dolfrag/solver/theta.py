@@ -1,0 +1,548 @@
+"""The `theta` step: Moreau-Jean theta-method, bulk and interface implicit (DESIGN.md §4).
+
+A step t_n -> t_{n+1} = t_n + h solves for the velocity increment x = v_{n+1} - v_n of
+every dof component and, where the interface has contact, the link reactions r (link
+frame, normal first; Pa, r_N >= 0 pushes the faces apart), the mean force density of the
+step's contact impulse:
+
+    M x = h f_theta + h B^T w R^T r
+    u_{n+1} = u_n + h (theta v_{n+1} + (1 - theta) v_n) = u_n + h (v_n + theta x)
+    f_theta = p_theta l - K u_theta - B^T w R^T t(g_theta)
+    phi(r, g_{n+1}, g_{n+1} - g_n) = 0
+
+u_theta = theta u_{n+1} + (1 - theta) u_n; g = R B u the link jumps in the link frames R
+(interface/jumps.py, links.py); w the link weights; t the cohesive traction of the model
+with its damage lagged by one step (interface/models.py: each step problem is monotone);
+p_theta = theta p(t_{n+1}) + (1 - theta) p(t_n) the pressure on the load vector l; phi the
+Alart-Curnier projection (interface/contact.py): Signorini on the end-of-step gap, Coulomb
+with mu(state_n) on the step's slip, no penalty. With linear forces Newton's matrix is
+W = M + theta^2 h^2 (K + B^T w D B), D the link stiffness: a global sparse operator (K
+couples the copies of a cell, the links the copies of a vertex), so every Newton iteration
+is one PETSc KSP solve (MUMPS LU) of the generalised Jacobian of (x, r) together. The
+reaction unknowns and rows are scaled per link so that every entry is of the order of the
+link's mass m_l (r = m_l / (h w) r~, rows times h w, augmentation rho = m_l / (theta h^2 w)),
+which keeps the pivoting of the saddle-point system sound.
+
+Energy. With D the link stiffness at the converged point (piecewise constant: contact keeps
+g_N >= 0 at the ends of the steps), the step obeys exactly
+
+    Delta(1/2 v.M v + 1/2 u.K u + psi(g)) + D_contact + D_num = p_theta l.(u_{n+1} - u_n)
+    D_contact = -sum w r.(g_{n+1} - g_n) >= 0   (inelastic impacts, friction)
+    D_num = (theta - 1/2) (x.M x + du.K du + sum w dg.D dg) >= 0,  du = u_{n+1} - u_n
+
+so theta = 1/2 conserves energy (trapezoidal rule) and theta > 1/2 damps the high
+frequencies: D_num is reported as its own number (Energies.numerical). The energy
+released by damage is booked at g_{n+1} by model.store, where this scheme stores it; for
+the rigid laws (threshold, linear softening) the cohesive part of the constraint reactions'
+work is stored in the links (model.absorb), split from D_contact as the star Newton does.
+
+Newton. A backtracking line search on the residual norm; damped steps after CYCLE
+iterations (active-set cycles); on sticking links, REGULARISATION on the reaction diagonal
+(rigid constraints around a vertex are redundant; the residual stays exact). The Jacobian is
+refactorised only when it changed. A step Newton cannot finish in max_iterations is cut
+into two half steps, recursively max_cuts times, before ConvergenceError is raised with the
+state left at t_n. Parallel: owned rows are owned dof components (dolfinx's layout) and
+owned links (vertex owner); off-process contributions go through PETSc's assembly, ghost
+values through dolfinx scatters; the answer does not depend on the rank count beyond
+solver round-off.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from dolfrag import compat
+from dolfrag.interface import laws, models
+from dolfrag.interface.contact import contact_friction_projection, link_blocks
+from dolfrag.solver import semismooth
+from dolfrag.solver.imex import Energies
+from dolfrag.solver.semismooth import CYCLE, REGULARISATION, STALL
+
+# Doublings of MUMPS' workspace relaxation tried when a factorisation runs out of it.
+MUMPS_RELAXATIONS = 6
+
+KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
+               if not k.startswith("_")}
+
+
+class ConvergenceError(semismooth.ConvergenceError):
+    """A step that did not converge, even cut max_cuts times; the state is left at t_n."""
+
+    def __init__(self, t, h, residual, iterations, reason):
+        self.t, self.h, self.residual, self.iterations, self.reason = t, h, residual, iterations, reason
+        super().__init__(f"theta step at t = {t:.6g} s did not converge with sub-steps down to h = {h:.3g} s: "
+                         f"{reason}; scaled residual {residual:.3g} after {iterations} Newton iterations")
+
+
+class _NotConverged(Exception):
+    def __init__(self, residual, iterations, reason):
+        super().__init__(reason)
+        self.residual, self.iterations, self.reason = residual, iterations, reason
+
+
+@dataclass
+class NewtonReport:
+    """Newton iterations of the last step (all its sub-steps), its extra sub-steps from step
+    cutting, the largest final scaled residual of its sub-steps, and the energy the contact
+    reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged
+    stays 0: a step that does not converge is cut, then raises ConvergenceError."""
+    max_iterations: int
+    rtol: float
+    iterations: int = 0
+    cuts: int = 0
+    residual: float = 0.0
+    unconverged: int = 0
+    contact_dissipated: float = 0.0
+
+
+def accuracy_time_step(load, end, per_feature=20):
+    """A step (s) resolving the load signal (config.Load): its shortest feature (rise, decay,
+    or table interval) over per_feature, at most end / per_feature. A priori only: it knows
+    nothing of the structure's periods or of crack events."""
+    if load.signal == "triangular":
+        features = [load.rise, load.duration - load.rise]
+    else:
+        features = list(np.diff(load.t))
+    shortest = min([f for f in features if f > 0] + [end])
+    return shortest / per_feature
+
+
+class Theta:
+    """Moreau-Jean integrator with the surface of solver/imex.Imex.
+
+    space, bulk, jump: from space.py, bulk.py, interface/jumps.py; model: an interface model
+    (interface/models.py: Elastic springs, or a law with damage, contact and friction);
+    load: Function of nodal forces per pascal; pressure: p(t) in Pa; h: time step (s), any
+    size (the scheme is unconditionally stable); theta in [1/2, 1]; constrained: flat local
+    dof components held at zero (supports.constrained_components, or a boolean mask such as
+    Stars.constrained); max_iterations, rtol: Newton's cap and tolerance on the residual
+    scaled by the step's largest momentum term; max_cuts: halvings of a step Newton cannot
+    finish. Collective.
+    """
+
+    def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(),
+                 max_iterations=30, rtol=1e-10, max_cuts=4):
+        if not 0.5 <= theta <= 1.0:
+            raise ValueError(f"theta = {theta!r}: must be in [1/2, 1]")
+        if not h > 0:
+            raise ValueError(f"h = {h!r}: the time step must be > 0 (s)")
+        self.space, self.bulk, self.jump, self.model = space, bulk, jump, model
+        self.pressure, self.h, self.theta = pressure, h, theta
+        self.max_cuts = max_cuts
+        self.comm = space.mesh.comm
+        self.u, self.v, self.x, self.force = (compat.Function(space.V) for _ in range(4))
+        self.u.name, self.v.name = "displacement", "velocity"
+        d = self.d = space.gdim
+        n_x = space.n_owned_dofs * d
+        self.owned = slice(0, n_x)
+        self.m = bulk.m.x.array
+        self.load_vector = load.x.array[self.owned].copy()  # N per Pa
+        self.t, self.n = 0.0, 0
+        self.work = self.numerical = 0.0  # this rank's shares, J
+        self.interface = NewtonReport(max_iterations, rtol)
+        self.contact = not isinstance(model, models.Elastic)
+
+        links = jump.links
+        self.frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
+        self.w = links.weight
+        self.cA = space.components(links.dof_A[:, None])
+        self.cB = space.components(links.dof_B[:, None])
+        self.m_link = 0.5 * (self.m[self.cA[:, 0]] + self.m[self.cB[:, 0]])  # kg
+        self.r = np.zeros((len(links), d))  # contact reactions of the last step, Pa
+        self._g = np.zeros((len(links), d))  # link-frame jumps of u_n, m
+        self._x_last, self._h_last = np.zeros(n_x), 0.0  # last velocity increment: Newton's start
+        n_r = len(links) * d if self.contact else 0
+        start = self.comm.exscan(n_x + n_r) or 0
+        constrained = np.asarray(constrained)
+        self._fixed = self._owner_flags(np.flatnonzero(constrained) if constrained.dtype == bool else constrained)
+        self._frozen = self._frozen_links() if self.contact else np.zeros((0, d), dtype=bool)
+        self._x_global = self._global_components(start)
+        self._r_global = start + n_x + np.arange(n_r).reshape(-1, d)
+        self._build_pattern()
+        self._create_solver(n_x + n_r, start)
+
+    # ------------------------------------------------------------------ setup
+    def _owner_flags(self, constrained):
+        """Flat bool (local comps): held at zero, as the owner of the component says."""
+        f = self.force
+        f.x.array[:] = 0.0
+        f.x.array[np.asarray(constrained, dtype=np.int64)] = 1.0
+        compat.scatter_forward(f)
+        return f.x.array > 0.5
+
+    def _frozen_links(self):
+        """(n_links, d) bool: link components whose jump involves held components only.
+        Their reaction is undetermined (a zero column): it is set to 0 with an identity row."""
+        free = ~self._fixed
+        moves = np.abs(self.frame) > 1e-12  # (n, a, j): component a of the jump reads comp j
+        return ~np.any(moves & (free[self.cA] | free[self.cB])[:, None, :], axis=2)
+
+    def _global_components(self, start):
+        """Global row of every local dof component (owned and ghost), via a forward scatter."""
+        f = self.force
+        n_x = self.owned.stop
+        f.x.array[:n_x] = start + np.arange(n_x)
+        compat.scatter_forward(f)
+        return np.rint(f.x.array).astype(np.int64)  # exact: float64 holds integers < 2^53
+
+    def _build_pattern(self):
+        """Global rows and columns of every block of the step Jacobian, the entries each
+        block drops (held dof components, frozen link components), and the unique CSR
+        pattern they add up to. Values come from _values in the same block order."""
+        gx, d, fixed = self._x_global, self.d, self._fixed
+        n_x = self.owned.stop
+        own = np.arange(n_x)
+        indptr, cols, _ = self.bulk.K.getValuesCSR()
+        k_start = self.bulk.K.getOwnershipRange()[0]
+        k_rows = np.repeat(own, np.diff(indptr))
+        k_cols = cols.astype(np.int64) - k_start
+        if np.any((k_cols < 0) | (k_cols >= n_x)):
+            raise RuntimeError("K couples dofs across ranks: it is no longer block-diagonal per owned cell")
+        self._k_values = self.bulk.K.getValuesCSR()[2].copy()
+        cA, cB = self.cA, self.cB
+        blocks = {
+            "mass": (gx[own], gx[own], np.zeros(n_x, dtype=bool)),
+            "bulk": (gx[k_rows], gx[k_cols], fixed[k_rows] | fixed[k_cols]),
+            "springs": _stack([_outer(gx[X], gx[Y], fixed[X], fixed[Y]) for X, Y in ((cB, cB), (cA, cA), (cA, cB),
+                                                                                     (cB, cA))]),
+        }
+        if self.contact:
+            gr, frozen = self._r_global, self._frozen
+            blocks["impulse"] = _stack([_outer(gx[X], gr, fixed[X], frozen) for X in (cB, cA)])
+            blocks["gap"] = _stack([_outer(gr, gx[Y], frozen, fixed[Y]) for Y in (cB, cA)])
+            blocks["reaction"] = _outer(gr, gr, frozen, frozen)
+            blocks["frozen"] = (gr, gr, np.zeros(gr.shape, dtype=bool))
+        self._blocks = list(blocks)
+        rows = np.concatenate([b[0].ravel() for b in blocks.values()])
+        cols = np.concatenate([b[1].ravel() for b in blocks.values()])
+        self._keep = ~np.concatenate([b[2].ravel() for b in blocks.values()])
+        size = self.comm.allreduce(n_x + (self._r_global.size if self.contact else 0))
+        key, self._slot = np.unique(rows * size + cols, return_inverse=True)
+        self._rows, self._cols = key // size, key % size
+        self._size = size
+
+    def _create_solver(self, n_local, start):
+        comm = self.comm
+        ranges = np.array(comm.allgather(start) + [self._size])
+        d_nnz, o_nnz = _preallocation(comm, self._rows, self._cols, ranges)
+        A = PETSc.Mat().createAIJ(size=((n_local, self._size), (n_local, self._size)),
+                                  nnz=(d_nnz, o_nnz), comm=comm)
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        rowmap, count = np.unique(self._rows, return_counts=True)
+        self._csr = (np.r_[0, np.cumsum(count)].astype(PETSc.IntType), self._cols.astype(PETSc.IntType),
+                     rowmap.astype(PETSc.IntType))
+        ksp = PETSc.KSP().create(comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        if self.contact:  # a saddle point with zero pivots: MUMPS' pivoting LU
+            pc.setType("lu")
+            pc.setFactorSolverType("mumps")
+        else:  # W symmetric positive definite
+            pc.setType("cholesky")
+            # serial: PETSc's own factor solves 4x faster than MUMPS (10 against 40 ms at
+            # 72k unknowns, measured); in parallel MUMPS is the distributed one
+            pc.setFactorSolverType("petsc" if comm.size == 1 else "mumps")
+            if comm.size == 1:
+                pc.setFactorOrdering("nd")
+        ksp.setOptionsPrefix("dolfrag_theta_")
+        ksp.setFromOptions()
+        self.A, self.ksp = A, ksp
+        self._rhs, self._dz = A.createVecs()
+        self._last_values, self._assembled_h = None, None
+
+    @property
+    def energy_time(self):
+        """Time (s) of the energies step() returns: t_{n+1} (imex's are at t_{n+1/2})."""
+        return self.t
+
+    # ------------------------------------------------------------------ one step
+    def step(self, energies=False):
+        """Advance from t_n to t_n + h (cut into sub-steps if Newton needs it). With
+        ``energies``, return the Energies at t_{n+1} (collective), else None."""
+        self.interface.iterations = self.interface.cuts = 0
+        self.interface.residual = 0.0
+        self._advance(self.h, 0)
+        self.n += 1
+        return self._energies() if energies else None
+
+    def _advance(self, h, depth):
+        try:
+            self._substep(h)
+        except _NotConverged as failure:
+            if depth == self.max_cuts:
+                raise ConvergenceError(self.t, h, failure.residual, failure.iterations, failure.reason) from None
+            self.interface.cuts += 1
+            self._advance(h / 2, depth + 1)
+            self._advance(h / 2, depth + 1)
+
+    def _substep(self, h):
+        """Newton on (x, r) for one step of length h; commits only once converged."""
+        th = self.theta
+        if hasattr(self.model, "h"):
+            self.model.h = h  # the viscous damage update integrates over the step actually taken
+        state_n = self.model.state_at(np.arange(len(self.w))) if self.contact else None
+        p_theta = th * float(self.pressure(self.t + h)) + (1 - th) * float(self.pressure(self.t))
+        step = _Step(h, p_theta, state_n, self.m_link / (th * h * h * self.w), self.m_link / (h * self.w))
+        if self.contact:
+            step.mu, step.shift = self.model.friction(state_n), self.model.shift(state_n)
+            step.cohesion_T = self.model.shear_cohesion(state_n)
+        x = self._x_last * (h / self._h_last) if self._h_last else np.zeros(self.owned.stop)
+        r = np.where(self._frozen, 0.0, self.r) if self.contact else self.r
+        point = self._evaluate(step, x, r)
+        cap = self.interface.max_iterations
+        for iteration in range(1, cap + 1):
+            if point.converged:
+                break
+            dz = self._solve(step, point)
+            dx = dz[:len(x)]
+            dr = step.sigma[:, None] * dz[len(x):].reshape(-1, self.d) if self.contact else 0.0
+            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps (as the star Newton)
+                dx, dr = (0.5 ** (1 + iteration % 3) * a for a in (dx, dr))
+            x, r, point = self._line_search(step, x, r, point, dx, dr)
+            self.interface.iterations += 1
+        else:
+            # stalled on a stick-slip kink within STALL: accepted, as the star Newton does
+            if not point.converged and point.error > STALL:
+                raise _NotConverged(point.error, cap, f"Newton did not converge in {cap} iterations")
+        self.interface.residual = max(self.interface.residual, point.error)
+        self._commit(step, point, x, r)
+
+    def _line_search(self, step, x, r, point, dx, dr, backtracks=4):
+        """Backtracking on the residual norm; when no shorter step lowers it, the full step
+        is taken anyway: a semi-smooth Newton step that changes the active set may raise
+        the norm and still be the right one."""
+        alpha, full = 1.0, None
+        for _ in range(backtracks + 1):
+            trial = self._evaluate(step, x + alpha * dx, r + alpha * dr)
+            if trial.norm <= (1 - 1e-4 * alpha) * point.norm or trial.converged:
+                return x + alpha * dx, r + alpha * dr, trial
+            full = full or trial
+            alpha /= 2
+        return x + dx, r + dr, full
+
+    def _evaluate(self, step, x, r):
+        """Scaled residual (momentum rows in N s, link rows h w phi in N s) at (x, r)."""
+        h, th, own = step.h, self.theta, self.owned
+        xf = self.x.x.array
+        xf[own] = x
+        compat.scatter_forward(self.x)
+        du = h * (self.v.x.array + th * xf)  # u_{n+1} - u_n, every local component
+        g_end = self._g + np.einsum("lij,lj->li", self.frame, self.jump(du))
+        g_theta = self._g + th * (g_end - self._g)
+        point = _Point(g_end, g_theta)
+        if self.contact:
+            phi_N, phi_T, point.jac, _ = contact_friction_projection(
+                r[:, 0], r[:, 1:], g_end[:, 0], g_end[:, 1:] - self._g[:, 1:], step.rho, step.rho, step.mu,
+                step.shift, step.cohesion_T)
+            phi = np.where(self._frozen, 0.0, (h * self.w)[:, None] * np.column_stack([phi_N, phi_T]))
+            # Contact keeps g_N >= 0 at the ends of the steps, so g_theta,N >= 0 wherever it
+            # holds; round-off makes that +-1e-20 m, and the sign would flip the spring's
+            # tangent at random (Newton cycles, refactorisations): the law is read at |g_N|.
+            closed = point.jac.dN_drN == 0
+            g_theta = np.column_stack([np.where(closed, np.abs(g_theta[:, 0]), g_theta[:, 0]), g_theta[:, 1:]])
+        law = point.law = self._cohesion(g_theta, step.state_n)
+        t = np.column_stack([law.r_N, law.r_T]) - r  # Pa, tension positive
+        f = self.force.x.array
+        f[:] = self.jump.BT @ (self.w[:, None] * np.einsum("lai,la->li", self.frame, t)).ravel()
+        compat.scatter_reverse_add(self.force)
+        inertia = self.m[own] * x
+        load = h * step.p_theta * self.load_vector
+        elastic = h * (self.bulk.K_cells @ (self.u.x.array[own] + th * du[own]))
+        interface = h * f[own]
+        R_m = np.where(self._fixed[own], 0.0, inertia - load + elastic + interface)
+        scale = max(np.abs(a).max(initial=0.0) for a in (inertia, load, elastic, interface))
+        F = np.concatenate([R_m, phi.ravel()]) if self.contact else R_m
+        error, scale, sq = _global_norms(self.comm, F, scale)
+        point.F, point.norm = F, np.sqrt(sq)
+        point.error = error / scale if scale > 0 else 0.0
+        point.converged = error <= self.interface.rtol * scale
+        return point
+
+    def _cohesion(self, g, state_n):
+        """models.Cohesion at link-frame jumps g (n, d): the model's, or the elastic springs'."""
+        if self.contact:
+            return self.model.cohesion(g[:, 0], g[:, 1:], state_n)
+        n, m = g.shape[0], self.d - 1
+        r_N, r_T, k_N, k_T = laws.elastic(g[:, 0], g[:, 1:], self.model.C_N, self.model.C_T)
+        zeros = np.zeros((n, m))
+        return models.Cohesion(r_N, r_T, np.full(n, k_N), np.broadcast_to(k_T * np.eye(m), (n, m, m)),
+                               zeros, zeros, None)
+
+    def _values(self, step, point):
+        """Jacobian entries, block by block in _build_pattern's order (before dropping)."""
+        h, th, R = step.h, self.theta, self.frame
+        law = point.law
+        D = link_blocks(law.dr_N_dg_N, law.dr_N_dg_T, law.dr_T_dg_N, law.dr_T_dg_T)
+        S = (th * th * h * h * self.w)[:, None, None] * np.matmul(R.transpose(0, 2, 1), np.matmul(D, R))
+        values = {"mass": self.m[self.owned], "bulk": th * th * h * h * self._k_values,
+                  "springs": np.stack([S, S, -S, -S])}
+        if self.contact:
+            jac, m_l = point.jac, self.m_link[:, None, None]
+            Jg = link_blocks(jac.dN_dgN, jac.dN_dgT, jac.dT_dgN, jac.dT_dgT) / step.rho[:, None, None]
+            Jr = link_blocks(jac.dN_drN, jac.dN_drT, jac.dT_drN, jac.dT_drT)
+            # Sticking links around a vertex are redundant constraints (their jumps sum to zero
+            # around it; semismooth.REGULARISATION): their tangential rows get REGULARISATION on
+            # the diagonal. The residual stays exact; Newton converges at that rate there. The
+            # normal rows alone are independent (the facets of a cell at a vertex have
+            # independent normals), so contact without stick keeps the exact Newton step.
+            stick = np.all(jac.dT_drT == 0, axis=(1, 2))
+            Jr[:, 1:, 1:] += REGULARISATION * stick[:, None, None] * np.eye(self.d - 1)
+            RT = m_l * R.transpose(0, 2, 1)
+            gap = m_l * np.matmul(Jg, R)
+            values.update(impulse=np.stack([-RT, RT]), gap=np.stack([gap, -gap]), reaction=m_l * Jr,
+                          frozen=np.where(self._frozen, self.m_link[:, None], 0.0))
+        return np.concatenate([values[k].ravel() for k in self._blocks]) * self._keep
+
+    def _solve(self, step, point):
+        """One Newton correction: refactor only when the Jacobian changed anywhere (the
+        springs' alone depends on h only)."""
+        if self.contact or step.h != self._assembled_h:
+            values = np.bincount(self._slot, weights=self._values(step, point), minlength=len(self._rows))
+            changed = self._last_values is None or not np.array_equal(values, self._last_values)
+            if self.comm.allreduce(changed, op=MPI.LOR):
+                self.A.zeroEntries()
+                self.A.setValuesIJV(*self._csr[:2], values, addv=PETSc.InsertMode.ADD_VALUES, rowmap=self._csr[2])
+                self.A.assemble()
+                self._last_values = values
+            self._assembled_h = step.h
+        self._rhs.array[:] = -point.F
+        for _ in range(MUMPS_RELAXATIONS + 1):
+            try:
+                self.ksp.solve(self._rhs, self._dz)
+            except PETSc.Error as err:
+                self._last_values, self._assembled_h = None, None
+                raise _NotConverged(point.error, self.interface.iterations, f"linear solve failed: {err}") from None
+            reason = self.ksp.getConvergedReason()
+            if reason >= 0 or not self._mumps_short_of_workspace():
+                break
+        if reason < 0:
+            self._last_values = self._assembled_h = None  # a failed factorisation is not reused
+            raise _NotConverged(point.error, self.interface.iterations,
+                                f"linear solve failed: {KSP_REASONS.get(reason, reason)}")
+        dz = self._dz.array.copy()
+        dz[:self.owned.stop][self._fixed[self.owned]] = 0.0
+        return dz
+
+    def _mumps_short_of_workspace(self):
+        """After a failed factorisation: if MUMPS ran out of workspace (INFOG(1) = -8, -9:
+        pivots delayed by nearly redundant constraints, e.g. all links of a rigid law
+        sticking at t = 0), double its workspace relaxation ICNTL(14) and return True: the
+        next solve factorises anew. Collective."""
+        pc = self.ksp.getPC()
+        if pc.getFactorSolverType() != "mumps" or pc.getFactorMatrix().getMumpsInfog(1) not in (-8, -9):
+            return False
+        options = PETSc.Options(self.ksp.getOptionsPrefix())
+        options["mat_mumps_icntl_14"] = 2 * options.getInt("mat_mumps_icntl_14", 20)  # MUMPS' default: 20 %
+        pc.reset()  # forgets the factor and the operators
+        self.ksp.setOperators(self.A)
+        self.ksp.setFromOptions()
+        return True
+
+    def _commit(self, step, point, x, r):
+        """Accept the converged step: fields, damage, energies, time."""
+        h, th, own = step.h, self.theta, self.owned
+        xf = self.x.x.array
+        xf[own] = x
+        compat.scatter_forward(self.x)
+        du = h * (self.v.x.array + th * xf)
+        dg = point.g_end - self._g
+        law = point.law
+        D = link_blocks(law.dr_N_dg_N, law.dr_N_dg_T, law.dr_T_dg_N, law.dr_T_dg_T)
+        spring_work = self.w @ np.einsum("li,lij,lj->l", dg, D, dg)
+        self.numerical += (th - 0.5) * (x @ (self.m[own] * x) + du[own] @ (self.bulk.K_cells @ du[own]) + spring_work)
+        self.work += step.p_theta * self.load_vector @ du[own]
+        if self.contact:
+            g = point.g_end
+            state = self.model.cohesion(g[:, 0], g[:, 1:], step.state_n).state
+            every = np.arange(len(self.w))[:, None]
+            self.model.store(every, state[:, None], np.ones_like(every, dtype=bool), g[:, :1], g[:, None, 1:])
+            self._book_reactions(step, r, dg)
+            self.r = r
+        self.u.x.array[:] += du
+        self.v.x.array[:] += xf
+        self._g = point.g_end
+        self._x_last, self._h_last = x, h
+        self.t += h
+
+    def _book_reactions(self, step, r, dg):
+        """Split the work of the step's reactions -w r.dg (J/m^2 per link) as the star Newton
+        does (semismooth.StarNewton.account): the contact part r~_N = r_N + shift and the
+        friction share of r_T is dissipated; the cohesive part of a rigid link's constraint
+        (-shift, and the shear cohesion's share of r_T) is stored in it (model.absorb, after
+        model.store)."""
+        r_N, r_T = r[:, 0], r[:, 1:]
+        pressed = np.maximum(r_N + step.shift, 0.0)
+        radius = step.mu * pressed + step.cohesion_T
+        friction_share = np.divide(step.mu * pressed, radius, out=np.ones_like(radius), where=radius > 0)
+        slip_work = np.sum(r_T * dg[:, 1:], axis=1)
+        self.interface.contact_dissipated -= self.w @ ((r_N + step.shift) * dg[:, 0] + friction_share * slip_work)
+        self.model.absorb(-(-step.shift * dg[:, 0] + (1 - friction_share) * slip_work))
+
+    def _energies(self):
+        own = self.owned
+        v, u = self.v.x.array[own], self.u.x.array[own]
+        g = self._g
+        local = np.array([0.5 * self.m[own] @ v**2, 0.5 * u @ (self.bulk.K_cells @ u),
+                          self.w @ self.model.stored_energy(g[:, 0], g[:, 1:]),
+                          self.w @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
+                          np.count_nonzero(self.model.broken()), self.numerical])
+        total = self.comm.allreduce(local, op=MPI.SUM)
+        return Energies(*total[:6], int(total[6]), total[7])
+
+
+class _Step:
+    """What one step attempt of length h keeps fixed: the lagged state, friction, scalings."""
+
+    def __init__(self, h, p_theta, state_n, rho, sigma):
+        self.h, self.p_theta, self.state_n, self.rho, self.sigma = h, p_theta, state_n, rho, sigma
+        self.mu = self.shift = self.cohesion_T = None
+
+
+class _Point:
+    """The step's jumps, cohesion and contact Jacobian at one Newton iterate."""
+
+    def __init__(self, g_end, g_theta):
+        self.g_end, self.g_theta = g_end, g_theta
+        self.law = self.jac = self.F = None
+        self.norm = self.error = 0.0
+        self.converged = False
+
+
+def _outer(rows, cols, drop_rows, drop_cols):
+    """Entries (rows[l, i], cols[l, j]) of a d x d block per link: rows, columns (n, d, d) and
+    whether each entry is dropped (a held dof or frozen link component on either side)."""
+    shape = rows.shape + cols.shape[1:]
+    return (np.broadcast_to(rows[:, :, None], shape), np.broadcast_to(cols[:, None, :], shape),
+            drop_rows[:, :, None] | drop_cols[:, None, :])
+
+
+def _stack(blocks):
+    """Several _outer blocks as one (k, n, d, d) block."""
+    return tuple(np.stack(parts) for parts in zip(*blocks))
+
+
+def _global_norms(comm, F, scale):
+    """(max |F|, max scale, sum F^2) over all ranks. Collective."""
+    local = np.array([np.abs(F).max(initial=0.0), scale])
+    largest = np.empty(2)
+    comm.Allreduce(local, largest, op=MPI.MAX)
+    return largest[0], largest[1], comm.allreduce(float(F @ F), op=MPI.SUM)
+
+
+def _preallocation(comm, rows, cols, ranges):
+    """Nonzeros per owned row in the diagonal and off-diagonal blocks, for entries
+    (rows, cols) given by any rank (each rank sends the owners theirs). Collective."""
+    rank = comm.rank
+    if comm.size > 1:
+        owner = np.searchsorted(ranges, rows, side="right") - 1
+        got = comm.alltoall([np.stack([rows[owner == k], cols[owner == k]]) for k in range(comm.size)])
+        pairs = np.unique(np.concatenate(got, axis=1), axis=1)
+        rows, cols = pairs
+    start, stop = ranges[rank], ranges[rank + 1]
+    local = rows - start
+    diagonal = (cols >= start) & (cols < stop)
+    n = stop - start
+    return (np.bincount(local[diagonal], minlength=n).astype(PETSc.IntType),
+            np.bincount(local[~diagonal], minlength=n).astype(PETSc.IntType))
