@@ -9,7 +9,7 @@ from dolfrag import loads, supports
 from dolfrag.config import load_case
 from dolfrag.interface import models
 from dolfrag.interface.stars import Stars
-from dolfrag.runner import interface_step, setup
+from dolfrag.runner import interface_step, run, setup
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.theta import ConvergenceError, Theta, accuracy_time_step
 
@@ -178,3 +178,17 @@ def test_one_and_two_ranks_give_the_same_cracking_theta_run(tmp_path):
         assert np.allclose(one[name], two[name], rtol=0, atol=1e-8 * work), name
     speed = np.abs(one["v_right"]).max()
     assert np.allclose(one["v_right"], two["v_right"], rtol=0, atol=1e-8 * speed)
+
+
+def test_a_case_runs_with_time_scheme_theta_at_the_step_set_by_accuracy(tmp_path):
+    case = load_case("sound-bar", ["time.scheme=theta", "time.theta=0.6", "mesh.size=0.004",
+                                   "output.fields=0", "output.figures=false"])
+    summary = run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
+    assert summary["status"] == "completed"
+    # the step follows the load (shortest feature / 20, here the 2 us rise: 0.1 us), not the
+    # bulk stability limit (0.54 us here)
+    assert summary["dt_s"] == pytest.approx(accuracy_time_step(case.load, case.time.end), rel=0.01)
+    history = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
+    # theta > 1/2 damps: its numerical dissipation is a column and closes the balance
+    assert history["D_numerical_J"][-1] > 0
+    assert np.abs(history["balance_error_J"]).max() < 1e-10 * history["W_external_J"].max()
