@@ -179,3 +179,36 @@ def test_rccm_decoupled_dissipates_G_c_whatever_C_N():
         # the lagged secant overshoots (never undershoots) and the excess vanishes at about
         # first order in the increment (x dg log dg): 4 times finer, more than 3 times smaller
         assert 0 <= excess[1] < excess[0] / 3 and excess[0] < 0.1, excess
+
+
+def test_friction_slips_at_the_coulomb_limit_sticks_below_it_and_dissipates_its_work():
+    # An intact threshold link, closed (g_N = 0 imposed), presses with its cohesion: the
+    # Coulomb cone is shifted by R_c, so the slip threshold is mu R_c with no normal load.
+    R_c, mu = 3.0e6, 0.5
+    case, integ, links, comps = two_cells(["interface.law=threshold", f"interface.R_c={R_c}",
+                                           "interface.W_eth=1e-3", f"interface.mu={mu}"])
+    t = links.tangents[0][0]
+    s = 2e-6  # m: slide forward s, hold, slide back s / 2
+    g = np.concatenate([np.linspace(0, s, 101), np.full(50, s), np.linspace(s, s / 2, 51)[1:]])
+    n, length = links.normal[0], links.weight.sum()
+    B, h = comps["B"], integ.h
+    velocity = np.diff(g) / h
+    shear, k = [], {"now": 0}
+    integ.impose(B, lambda _: np.tile(velocity[k["now"]] * t, len(B) // len(t)))
+    for k["now"] in range(len(velocity)):
+        integ.step()
+        R = integ.interface.reaction[B] - integ.m[B] * integ.dv.x.array[B] / h
+        shear.append(R.reshape(-1, len(n)).sum(axis=0) @ t / length)
+    shear = np.array(shear)
+    forward, hold, back = velocity > 0, velocity == 0, velocity < 0
+    # the support drives B against friction: +mu R_c forward, -mu R_c back (the Newton tolerance)
+    assert shear[forward] == pytest.approx(mu * R_c, rel=RTOL)
+    assert shear[back] == pytest.approx(-mu * R_c, rel=RTOL)
+    assert np.all(np.abs(shear[hold]) <= mu * R_c * (1 + RTOL))  # stick: inside the cone
+    # friction work mu R_c x slid distance x facet length, all of it dissipated by contact.
+    # The discrete energy identity pairs a step's reaction with the centred difference
+    # (g_{n+1} - g_{n-1}) / 2, so each start, stop or reversal of sliding shifts the sum by
+    # half an increment: within one increment in all (measured: exactly one, -1/150)
+    increment = mu * R_c * np.abs(np.diff(g)).max() * length
+    assert abs(integ.interface.contact_dissipated - mu * R_c * 1.5 * s * length) <= increment * (1 + 1e-6)
+    assert not integ.model.broken().any() and integ.model.dissipated().sum() == 0
