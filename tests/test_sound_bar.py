@@ -73,7 +73,7 @@ INTACT_RCCM = ["--set", "interface.law=rccm", "--set", "interface.sigma_c=1e9", 
 SOFTENING = ["--set", "interface.law=linear_softening", "--set", "interface.sigma_c=4e5",
              "--set", "interface.G_c=0.05", "--set", "mesh.size=0.004"]
 THRESHOLD = ["--set", "interface.law=threshold", "--set", "interface.R_c=4e5",
-             "--set", "interface.W_eth=1e-7", "--set", "mesh.size=0.004"]
+             "--set", "interface.W_eth=1e-7", "--set", "interface.mu=0.3", "--set", "mesh.size=0.004"]
 VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM, "linear-softening": SOFTENING,
             "threshold": THRESHOLD}
 

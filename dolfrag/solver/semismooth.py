@@ -52,6 +52,10 @@ CYCLE = 20
 # reactions), max_iterations end the star's solve; it is accepted if within STALL.
 STALL = 1e-8
 
+# Newton iterations after which projected Gauss-Seidel sweeps (_gauss_seidel) take over the
+# stars still unconverged; each further iteration is one call of up to 300 sweeps.
+FALLBACK = 30
+
 # Relative size below which a star's own scales give way to the step's largest (see solve).
 FLOOR = 1e-6
 
@@ -205,7 +209,7 @@ class StarNewton:
             scale_c = np.abs(rt).max(axis=(1, 2)) + (rho[..., None] * terms * valid[..., None]).max(axis=(1, 2))
             scaled = np.maximum(_ratio(np.abs(R_m).max(axis=1), np.maximum(scale_m, self._floor_m)),
                                 _ratio(np.abs(phi).max(axis=(1, 2)), np.maximum(scale_c, self._floor_c)))
-            done = scaled <= self.rtol
+            done = scaled <= (self.rtol if iteration < FALLBACK else STALL)  # stalled: accept
             self.residual = max(self.residual, scaled[done].max(initial=0.0))
             g_mid = g_n[todo] + 0.5 * slip  # (g_n + g_{n+1}) / 2, where the energy is stored
             self.model.store(grp.links[todo][done], law.state.reshape(-1, L)[done], valid[done],
@@ -217,6 +221,11 @@ class StarNewton:
             keep = ~done
             R = np.concatenate([R_m[keep], phi[keep].reshape(-1, L * d)], axis=1)
             todo = todo[keep]
+            if iteration >= FALLBACK:  # Newton wanders: Gauss-Seidel takes these stars over
+                x[todo], r[todo] = self._gauss_seidel(
+                    BR[keep], w[keep], m[keep], fixed[keep], valid[keep], law, keep, L, rhs[todo], x[todo],
+                    r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo])
+                continue
             reuse = cached[todo] if iteration == 1 else np.zeros(len(todo), dtype=bool)
             fresh = ~reuse
             if fresh.any():
@@ -240,6 +249,52 @@ class StarNewton:
         damaged = (self.model.state_at(grp.links) != state_n) & grp.valid
         cached[damaged.any(axis=1)] = False
         return x
+
+    def _gauss_seidel(self, BR, w, m, fixed, valid, law, keep, L, rhs, x, r, g_n, dg_pred, mu, shift, cohesion_T,
+                      sweeps=300):
+        """Projected Gauss-Seidel over the links of the given stars (the nonsmooth
+        Gauss-Seidel of LMGC90, star by star): with the springs' tangent D of the current
+        iterate held, x is linear in r, x = x0 + X r, so the end-of-step jumps are
+        c + G r; each link in turn projects r_l - rho_l (its gap, its slip) onto the shifted
+        Signorini-Coulomb set, rho_l = 1 / max diag G_ll. Returns x (n, q), r (n, L, d)."""
+        h, d = self.h, self.stars.gdim
+        n, q = m.shape
+        pick = lambda a: a.reshape(-1, L, *a.shape[1:])[keep]  # noqa: E731
+        D = link_blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
+        BR4 = BR.reshape(n, L, d, q)
+        A = 0.25 * h * h * np.einsum("slip,sl,slij,sljq->spq", BR4, w, D, BR4)
+        A[:, np.arange(q), np.arange(q)] += m
+        P = (BR * np.repeat(w, d, axis=1)[..., None]).transpose(0, 2, 1)  # B^T W, (n, q, L d)
+        spring = np.einsum("slij,slj->sli", D, g_n).reshape(n, L * d)  # springs' traction at g_n
+        x_fixed = np.where(fixed, x, 0.0)
+        b0 = rhs - h * np.matmul(P, spring[..., None])[..., 0] - np.matmul(A, x_fixed[..., None])[..., 0]
+        A[fixed[:, :, None] | fixed[:, None, :]] = 0.0
+        A[:, np.arange(q), np.arange(q)] += fixed
+        Ainv = np.linalg.inv(A)
+        x0 = np.matmul(Ainv, np.where(fixed, x, b0)[..., None])[..., 0]
+        X = h * np.matmul(Ainv, np.where(fixed[..., None], 0.0, P))
+        c = (g_n + dg_pred).reshape(n, L * d) + h * np.matmul(BR, x0[..., None])[..., 0]
+        G = (h * np.matmul(BR, X)).reshape(n, L, d, L, d)
+        diag = np.einsum("slala->sla", G).max(axis=2)
+        rho = np.divide(1.0, diag, out=np.zeros_like(diag), where=diag > 0)
+        c = c.reshape(n, L, d)
+        r = r.copy()
+        for _ in range(sweeps):
+            before = r.copy()
+            for l in range(L):
+                y = c[:, l] + np.einsum("sajb,sjb->sa", G[:, l], r)
+                rho_l = rho[:, l]
+                r_N = np.maximum(-shift[:, l], r[:, l, 0] - rho_l * y[:, 0])
+                z = r[:, l, 1:] - rho_l[:, None] * (y[:, 1:] - g_n[:, l, 1:])
+                radius = mu[:, l] * np.maximum(r_N + shift[:, l], 0.0) + cohesion_T[:, l]
+                norm = np.linalg.norm(z, axis=1)
+                z *= np.minimum(1.0, np.divide(radius, norm, out=np.ones_like(norm), where=norm > 0))[:, None]
+                update = valid[:, l] & (rho_l > 0)
+                r[:, l, 0] = np.where(update, r_N, r[:, l, 0])
+                r[:, l, 1:] = np.where(update[:, None], z, r[:, l, 1:])
+            if np.abs(r - before).max() <= 1e-14 * (np.abs(r).max() + self._floor_c):
+                break
+        return x0 + np.matmul(X, r.reshape(n, L * d, 1))[..., 0], r
 
     def _jacobian(self, BR, w, m, fixed, frozen, law, jac, keep, L):
         """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``;
