@@ -212,3 +212,39 @@ def test_friction_slips_at_the_coulomb_limit_sticks_below_it_and_dissipates_its_
     increment = mu * R_c * np.abs(np.diff(g)).max() * length
     assert abs(integ.interface.contact_dissipated - mu * R_c * 1.5 * s * length) <= increment * (1 + 1e-6)
     assert not integ.model.broken().any() and integ.model.dissipated().sum() == 0
+
+
+def test_a_pressed_block_slips_at_the_coulomb_limit_until_it_moves_with_its_driver():
+    # The belt problem: cell A is driven into the broken interface (normal acceleration a,
+    # so the contact pushes free cell B with ~ m_B a) while sliding at V; friction drags B
+    # at mu a until it moves with A (t_s = V / (mu a)), then holds it (stick).
+    mu, a, V = 0.5, 1e4, 0.5  # -, m/s^2, m/s
+    case, integ, links, comps = two_cells(["interface.law=rccm", f"interface.sigma_c={SIGMA_C}",
+                                           f"interface.mu={mu}"], held=("A",))
+    integ.model.beta[:] = 0.0  # broken: contact and full friction mu (1 - beta) only
+    n, t = links.normal[0], links.tangents[0][0]
+    A, B = comps["A"], comps["B"]
+    integ.impose(A, lambda time: np.tile(a * time * n + V * t, len(A) // len(n)))
+    m_B = integ.m[B].reshape(-1, len(n))[:, 0].sum()
+    slipping, sticking = [], []
+    for k in range(int(2 * V / (mu * a) / integ.h)):
+        integ.step()
+        r_N, r_T = integ.interface.r[:, 0], integ.interface.r[:, 1]
+        v_B = np.mean(integ.v.x.array[B].reshape(-1, len(n)) @ t)
+        pressed = r_N > 1e-6 * m_B * a / links.weight.sum()
+        if v_B < 0.5 * V or v_B > 0.9 * V:  # clearly slipping, or caught up
+            (slipping if v_B < 0.5 * V else sticking).append((r_N[pressed], r_T[pressed], v_B))
+    assert len(slipping) > 10 and len(sticking) > 10  # both phases seen
+    # slip: every pressed link sits on the Coulomb cone, r_T opposing B's slip relative to
+    # A (backwards), i.e. pushing B forwards along t (Newton tolerance)
+    for r_N, r_T, _ in slipping:
+        assert np.allclose(r_T, mu * r_N, rtol=1e-8, atol=1e-8 * mu * r_N.max(initial=0.0))
+    # stick: inside the cone (some links touch its edge as B rings; Newton's tolerance is
+    # 1e-10 of the star's scale, which holds the gap terms rho |g|, so allow 1e-6 of the
+    # reactions), and B moves with A (its copies ring elastically: within 2 %)
+    for r_N, r_T, v_B in sticking[len(sticking) // 2:]:
+        assert np.all(np.abs(r_T) <= mu * r_N + 1e-6 * mu * r_N.max(initial=0.0))
+        assert v_B == pytest.approx(V, rel=0.02)
+    # a rigid block dragged to the belt speed dissipates 1/2 m V^2 by friction; B is elastic
+    # and bounces on A (normal impacts dissipate too): 0.6 % below it, measured
+    assert integ.interface.contact_dissipated == pytest.approx(0.5 * m_B * V**2, rel=0.03)
