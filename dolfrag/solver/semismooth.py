@@ -18,9 +18,13 @@ the step (lagged by one step, interface/models.py): with an implicit, softening 
 stiffer than the star's mass term (m + h^2/4 w dr/dg indefinite) Newton cycled between
 opening and contact (period-20 cycles, measured) or found one of several solutions,
 whichever round-off chose. Lagged, every star problem is monotone: Newton is exact on its
-piecewise-linear pieces and stops in 4-10 iterations. Friction uses the law's coefficient at the start of the
-step (mu (1 - beta_n) for RCCM), so its derivative is not needed. Each star stops on its
-own; a star still unconverged after the cap is counted and reported.
+piecewise-linear pieces and stops in 4-10 iterations. Friction uses the law's coefficient
+at the start of the step (mu (1 - beta_n) for RCCM), so its derivative is not needed.
+
+Each star stops on its own. A star that Newton has not solved after FALLBACK iterations
+(active-set wandering, measured on rigid laws with friction) is handed to projected
+Gauss-Seidel sweeps over its links, still exact and local; a star still above STALL after
+max_iterations is counted as unconverged, and the runner stops with ConvergenceError.
 """
 import numpy as np
 from mpi4py import MPI
@@ -49,7 +53,7 @@ CYCLE = 20
 
 # Where the semi-smooth Newton stalls (a link sitting on the kink between stick and slip,
 # measured on the rigid laws with friction: residuals stuck at 1e-10 .. 2e-9 of the star's
-# reactions), max_iterations end the star's solve; it is accepted if within STALL.
+# reactions), a star within STALL is accepted from FALLBACK iterations on.
 STALL = 1e-8
 
 # Newton iterations after which projected Gauss-Seidel sweeps (_gauss_seidel) take over the
