@@ -56,8 +56,9 @@ CYCLE = 20
 # reactions), a star within STALL is accepted from FALLBACK iterations on.
 STALL = 1e-8
 
-# Newton iterations after which projected Gauss-Seidel sweeps (_gauss_seidel) take over the
-# stars still unconverged; each further iteration is one call of up to 300 sweeps.
+# Newton iterations after which the stars still unconverged alternate projected Gauss-Seidel
+# sweeps (_gauss_seidel, up to 300 per call) with full Newton steps from their result (which
+# finish the job once Gauss-Seidel has found the active set).
 FALLBACK = 30
 
 # Relative size below which a star's own scales give way to the step's largest (see solve).
@@ -225,7 +226,7 @@ class StarNewton:
             keep = ~done
             R = np.concatenate([R_m[keep], phi[keep].reshape(-1, L * d)], axis=1)
             todo = todo[keep]
-            if iteration >= FALLBACK:  # Newton wanders: Gauss-Seidel takes these stars over
+            if iteration >= FALLBACK and (iteration - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 x[todo], r[todo] = self._gauss_seidel(
                     BR[keep], w[keep], m[keep], fixed[keep], valid[keep], law, keep, L, rhs[todo], x[todo],
                     r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo])
@@ -239,7 +240,7 @@ class StarNewton:
                 inverse[todo[fresh]] = np.linalg.inv(J)
                 cached[todo[fresh]] = True
             delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
-            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps
+            if CYCLE < iteration < FALLBACK:  # break active-set cycles: shorter, varying steps
                 delta *= 0.5 ** (1 + iteration % 3)
             x[todo] += delta[:, :q]
             r[todo] += delta[:, q:].reshape(-1, L, d)
