@@ -29,7 +29,7 @@ max_iterations is counted as unconverged, and the runner stops with ConvergenceE
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.interface.contact import contact_friction_projection, link_blocks
+from dolfrag.interface.contact import STICK, contact_friction_projection, link_blocks
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -41,7 +41,9 @@ FROZEN = 1e6
 # Rigid constraints around a vertex are redundant: the jumps of an interior star sum to zero
 # around the vertex, so when every link sticks (a rigid threshold or linear-softening star,
 # or a frictional contact ring) the constraint rows lose rank and the exact Jacobian is
-# singular. The Newton matrix gets REGULARISATION on the reaction diagonal (d phi / d r):
+# singular. The Newton matrix gets REGULARISATION on the reaction diagonal (d phi / d r) of
+# sticking links only (elsewhere Newton stays exact: on a piecewise-linear piece it lands in
+# one step, which a cold start needs):
 # the residual stays exact, so the solution does too; Newton converges at a rate of about
 # REGULARISATION per iteration instead of exactly, and picks one of the equivalent
 # reactions in the redundant directions (they do no work: same motion, same energies).
@@ -201,7 +203,7 @@ class StarNewton:
             R_m = m * x[todo] - rhs[todo] + interface_force
             reaction = np.where(fixed, R_m / h, 0.0)
             R_m[fixed] = 0.0
-            phi_N, phi_T, jac, _ = contact_friction_projection(
+            phi_N, phi_T, jac, status = contact_friction_projection(
                 rt[..., 0].ravel(), rt[..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
                 slip[..., 1:].reshape(-1, d - 1), *(2 * [np.where(frozen, FROZEN * rho, rho).ravel()]),
                 mu[todo].ravel(), shift[todo].ravel(),
@@ -236,7 +238,8 @@ class StarNewton:
             if fresh.any():
                 new = keep.copy()
                 new[keep] = fresh
-                J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new], law, jac, new, L)
+                stick = (status == STICK).reshape(-1, L)[new]
+                J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new], stick, law, jac, new, L)
                 inverse[todo[fresh]] = np.linalg.inv(J)
                 cached[todo[fresh]] = True
             delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
@@ -301,7 +304,7 @@ class StarNewton:
                 break
         return x0 + np.matmul(X, r.reshape(n, L * d, 1))[..., 0], r
 
-    def _jacobian(self, BR, w, m, fixed, frozen, law, jac, keep, L):
+    def _jacobian(self, BR, w, m, fixed, frozen, stick, law, jac, keep, L):
         """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``;
         on frozen links, identity rows (see FROZEN)."""
         h, d = self.h, self.stars.gdim
@@ -320,7 +323,7 @@ class StarNewton:
         J[:, q:, :q] = h * np.einsum("slij,sljq->sliq", Jg, BR4).reshape(n, L * d, q)
         rows = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, :, None])
         cols = q + (np.arange(L)[:, None, None] * d + np.arange(d)[None, None, :])
-        J[:, rows, cols] = Jr + REGULARISATION * np.eye(d)
+        J[:, rows, cols] = Jr + REGULARISATION * stick[..., None, None] * np.eye(d)
         frozen_rows = np.repeat(frozen, d, axis=1)
         J[:, q:, :][frozen_rows] = 0.0
         J[:, q + np.arange(L * d), q + np.arange(L * d)] += frozen_rows
