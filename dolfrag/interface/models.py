@@ -301,8 +301,7 @@ class LinearSoftening(_Rigid):
         return self.delta_max == 0
 
     def stored_energy(self, g_N, g_T):
-        rigid = self.delta_max == 0
-        return np.where(rigid, self.work, 0.5 * self.secant(self.delta_max) * self._psi(g_N, g_T))
+        return np.where(self.rigid(), self.work, 0.5 * self.secant(self.delta_max) * self._psi(g_N, g_T))
 
     def broken(self):
         return self.delta_max >= self.delta_c

@@ -83,6 +83,7 @@ class StarNewton:
         frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
         self._frame = frame
         self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
+        self._all_links = np.arange(len(links))
         self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
         self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
         self.iterations = 0
@@ -124,7 +125,7 @@ class StarNewton:
         frame = self._frame
         g_loc = np.einsum("lij,lj->li", frame, g_n)
         dg_loc = self.h * np.einsum("lij,lj->li", frame, self.jump(v))
-        state_n = self.model.state_at(np.arange(len(self.r)))
+        state_n = self.model.state_at(self._all_links)
         self._mu, self._shift = self.model.friction(state_n), self.model.shift(state_n)
         self._cohesion_T = self.model.shear_cohesion(state_n)
         # A star far from the action (a millionth of the largest force or traction of this
