@@ -20,7 +20,7 @@ from dolfrag.post.fragments import breaks_along, fragments
 from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
-from dolfrag.solver.semismooth import ConvergenceError, StarNewton
+from dolfrag.solver.semismooth import ConvergenceError, StarNewton, step_stiffness
 from dolfrag.solver.theta import Theta, accuracy_time_step
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J",
@@ -29,15 +29,17 @@ ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "numerical
                  "balance_error"]
 
 
-def interface_model(interface, E, size, n, h):
-    """The model of ``interface`` (config.Interface) on n links; h (s) for viscous RCCM."""
+def interface_model(interface, E, size, n, h, k_step=np.inf):
+    """The model of ``interface`` (config.Interface) on n links; h (s) for viscous RCCM;
+    k_step (Pa/m, per link) the step's own stiffness, where linear softening leaves its
+    rigid constraint."""
     C_N, C_T = interface.stiffness(E, size)
     if interface.law == "elastic":
         return models.Elastic(n, C_N, C_T)
     if interface.law == "threshold":
         return models.Threshold(n, interface.R_c, interface.W_eth, interface.mu)
     if interface.law == "linear_softening":
-        return models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu)
+        return models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu, k_open=k_step)
     if interface.law == "rccm_decoupled":
         return models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu)
     return models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
@@ -45,7 +47,7 @@ def interface_model(interface, E, size, n, h):
 
 def interface_step(interface, E, size, stars, jump, m, h):
     """The model of ``interface`` (config.Interface) and its imex star step solver."""
-    model = interface_model(interface, E, size, len(jump.links), h)
+    model = interface_model(interface, E, size, len(jump.links), h, step_stiffness(jump.links, m, h, stars.gdim))
     if interface.law == "elastic":
         return ElasticSprings(stars, jump, model, m, h)
     return StarNewton(stars, jump, model, m, h)

@@ -16,6 +16,7 @@ from dolfrag.config import load_case
 from dolfrag.interface.stars import Stars
 from dolfrag.runner import interface_step, setup
 from dolfrag.solver.imex import Imex
+from dolfrag.solver.semismooth import step_stiffness
 
 PATCH = ROOT / "tests" / "cases" / "patch.toml"
 SIGMA_C = 5.0e6  # Pa
@@ -124,11 +125,17 @@ def test_linear_softening_follows_its_secant_and_dissipates_G_c():
     g = opening_path(0.6 * delta_c, 300, unload_to=0.1 * delta_c, reload_to=1.2 * delta_c)
     traction, _ = drive(integ, comps, links.normal[0], g)
     gbar, g_mid = averaged(g), (g[1:] + g[:-1]) / 2
-    delta_max, expected = 0.0, []
-    for gb, gm in zip(gbar, g_mid):  # rigid until opened, then the secant at the lagged delta_max
+    # rigid, at the softened strength, until the secant is down to the step's own stiffness
+    k_step = step_stiffness(links, integ.m, integ.h, 2)
+    delta_open = SIGMA_C / (k_step + SIGMA_C / delta_c)
+    assert integ.model.delta_open == pytest.approx(delta_open, rel=1e-12)
+    assert np.all((0.01 * delta_c < delta_open) & (delta_open < 0.1 * delta_c))  # a rigid phase of 5-50 steps
+    delta_max, sprung, expected = 0.0, False, []
+    for gb, gm in zip(gbar, g_mid):  # every quantity of the law lagged by one step
         S = SIGMA_C * (1 / delta_max - 1 / delta_c) if 0 < delta_max < delta_c else 0.0
-        expected.append(SIGMA_C if delta_max == 0 and gm > 0 else S * max(gb, 0.0))
+        expected.append(S * max(gb, 0.0) if sprung else SIGMA_C * (1 - delta_max / delta_c) * (gm > 0))
         delta_max = max(delta_max, gm) if gm > 1e-9 * delta_c else delta_max
+        sprung = sprung or delta_max > delta_open[0]
     assert traction == pytest.approx(np.array(expected), rel=RTOL, abs=RTOL * SIGMA_C)
     dissipated = integ.model.dissipated() @ links.weight / links.weight.sum()
     # The secant lagged one step lets the traction overshoot the softening envelope by

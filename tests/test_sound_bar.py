@@ -70,8 +70,10 @@ BOX_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--s
 
 INTACT_RCCM = ["--set", "interface.law=rccm", "--set", "interface.sigma_c=1e9", "--set", "mesh.size=0.004"]
 # the rigid laws, breaking at the free end (sigma_c below the reflected 1 MPa)
+# (with friction: before the step-stiffness switch of models.LinearSoftening, a star of
+# barely opened links stopped this run at step 106)
 SOFTENING = ["--set", "interface.law=linear_softening", "--set", "interface.sigma_c=4e5",
-             "--set", "interface.G_c=0.05", "--set", "mesh.size=0.004"]
+             "--set", "interface.G_c=0.05", "--set", "interface.mu=0.3", "--set", "mesh.size=0.004"]
 THRESHOLD = ["--set", "interface.law=threshold", "--set", "interface.R_c=4e5",
              "--set", "interface.W_eth=1e-7", "--set", "interface.mu=0.3", "--set", "mesh.size=0.004"]
 VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM, "linear-softening": SOFTENING,

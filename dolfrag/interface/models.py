@@ -238,41 +238,59 @@ class LinearSoftening(_Rigid):
     link opens, with tension up to sigma_c (Pa) and shear up to sigma_c beta_ratio^-1
     (the shifted cone of interface/contact.py); then secant springs S(delta_max) that
     soften linearly to zero at delta_c = 2 G_c / sigma_c (G_c J/m^2) and unload to the
-    origin; Coulomb friction mu. State: delta_max (m), 0 while rigid.
+    origin; Coulomb friction mu.
 
-    As for RCCM the secant is lagged by one step (each star problem stays monotone) and
-    the drop S_n -> S at the mid jump is booked as released energy; at opening, the
-    cohesive work done while rigid less the energy of the new secant is released."""
+    An opened link keeps its rigid constraint, with the strength softened along the law,
+    sigma_c (1 - delta_max / delta_c), until its secant drops to k_open (Pa/m, scalar or
+    per link; default: at once): the runner passes the step's own stiffness m / (h^2 w)
+    of each link (solver/semismooth.step_stiffness), so that no spring is stiffer than the
+    star problem it sits in. Measured on sound-bar with friction: links opened by 1e-10
+    delta_c got shear springs 2,000 times the step's stiffness, and star Newton cycled.
+    The switch opening delta_open = sigma_c / (k_open + sigma_c / delta_c) is about 4e-3
+    delta_c for concrete (sigma_c = 4 MPa, G_c = 100 J/m^2, 2.5 mm cells, measured); the
+    traction follows the envelope through it,
+    only unloading differs (the rigid link closes at its strength instead of along the
+    secant), which dissipates nothing extra once the link springs.
 
-    def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0):
+    State per link (``state_at``): delta_max (m) once on its spring, -delta_max while still
+    rigid. As for RCCM the secant and the strength are lagged by one step (each star
+    problem stays monotone) and the drop S_n -> S at the mid jump is booked as released
+    energy; at the switch, the cohesive work done while rigid less the energy of the new
+    secant is released."""
+
+    def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf):
         super().__init__(n_links, mu)
         self.sigma_c, self.G_c, self.beta_ratio, self.kappa = sigma_c, G_c, beta_ratio, kappa
         self.delta_c = 2 * G_c / sigma_c
+        self.delta_open = np.maximum(OPENING_TOLERANCE * self.delta_c,
+                                     sigma_c / (np.asarray(k_open, dtype=float) + sigma_c / self.delta_c))
         self.a_T = beta_ratio**2 / kappa  # the law's shear weight on the traction
         self.delta_max = np.zeros(n_links)
+        self.sprung = np.zeros(n_links, dtype=bool)
 
     def state_at(self, links):
-        return self.delta_max[links]
+        return np.where(self.sprung[links], self.delta_max[links], -self.delta_max[links])
 
-    def shift(self, delta_max):
-        return np.where(delta_max > 0, 0.0, self.sigma_c)
+    def shift(self, state):
+        """The rigid links' tensile strength (Pa), softened along the law: 0 once sprung."""
+        return np.where(state > 0, 0.0, self.sigma_c * np.maximum(1 + state / self.delta_c, 0.0))
 
-    def shear_cohesion(self, delta_max):
-        return np.where(delta_max > 0, 0.0, self.sigma_c / self.beta_ratio)
+    def shear_cohesion(self, state):
+        return self.shift(state) / self.beta_ratio
 
-    def secant(self, delta_max):
+    def secant(self, state):
         """S(delta_max) (Pa/m): the traction factor of the law, 0 while rigid or broken."""
-        inside = (delta_max > 0) & (delta_max < self.delta_c)
-        return np.where(inside, self.sigma_c * (1 / np.where(inside, delta_max, 1.0) - 1 / self.delta_c), 0.0)
+        inside = (state > 0) & (state < self.delta_c)
+        return np.where(inside, self.sigma_c * (1 / np.where(inside, state, 1.0) - 1 / self.delta_c), 0.0)
 
-    def cohesion(self, g_N, g_T, delta_max_n):
-        """Secant springs at the lagged delta_max_n (none on rigid links: the constraint
+    def cohesion(self, g_N, g_T, state_n):
+        """Secant springs at the lagged state_n (none on rigid links: the constraint
         carries them)."""
-        S = self.secant(delta_max_n)
+        S = self.secant(state_n)
         m = g_T.shape[1]
         zeros = np.zeros((len(S), m))
         return Cohesion(S * np.maximum(g_N, 0.0), (self.a_T * S)[:, None] * g_T, S * (g_N > 0),
-                        (self.a_T * S)[:, None, None] * np.eye(m), zeros, zeros, delta_max_n)
+                        (self.a_T * S)[:, None, None] * np.eye(m), zeros, zeros, state_n)
 
     def _delta(self, g_N, g_T):
         shear = self.beta_ratio**2 / self.kappa**2
@@ -282,23 +300,26 @@ class LinearSoftening(_Rigid):
         return np.maximum(g_N, 0.0) ** 2 + self.a_T * np.sum(g_T**2, axis=-1)
 
     def store(self, links, state, valid, g_N, g_T):
-        """delta_max from the mid-step jumps g_N (n, L), g_T (n, L, d-1); book the
-        released energy (the trial ``state`` is not used)."""
+        """delta_max from the mid-step jumps g_N (n, L), g_T (n, L, d-1); switch the links
+        past delta_open to their springs; book the released energy (the trial ``state``
+        is not used)."""
         idx = links[valid]
         gN, gT = g_N[valid], g_T[valid]
-        old = self.delta_max[idx]
+        old, was = self.delta_max[idx], self.sprung[idx]
         delta = self._delta(gN, gT)
-        opening = (old == 0) & (delta > OPENING_TOLERANCE * self.delta_c)
-        new = np.where(opening, delta, np.where(old > 0, np.maximum(old, delta), 0.0))
+        new = np.where(delta > OPENING_TOLERANCE * self.delta_c, np.maximum(old, delta), old)
+        now = was | (new > np.broadcast_to(self.delta_open, self.sprung.shape)[idx])
+        switching = now & ~was
         psi = self._psi(gN, gT)
         S_new = self.secant(new)
-        self.released[idx] += np.where(opening, self.work[idx] - 0.5 * S_new * psi,
-                                       0.5 * (self.secant(old) - S_new) * psi * (old > 0))
-        self.work[idx[opening]] = 0.0
+        self.released[idx] += np.where(switching, self.work[idx] - 0.5 * S_new * psi,
+                                       0.5 * (self.secant(old) - S_new) * psi * was)
+        self.work[idx[switching]] = 0.0
         self.delta_max[idx] = new
+        self.sprung[idx] = now
 
     def rigid(self):
-        return self.delta_max == 0
+        return ~self.sprung
 
     def stored_energy(self, g_N, g_T):
         return np.where(self.rigid(), self.work, 0.5 * self.secant(self.delta_max) * self._psi(g_N, g_T))
@@ -307,7 +328,7 @@ class LinearSoftening(_Rigid):
         return self.delta_max >= self.delta_c
 
     def damage(self):
-        """delta_max / delta_c, clipped to 1: 0 rigid, 1 broken."""
+        """delta_max / delta_c, clipped to 1: 0 intact, 1 broken."""
         return np.minimum(self.delta_max / self.delta_c, 1.0)
 
 

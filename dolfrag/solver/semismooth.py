@@ -49,9 +49,13 @@ FROZEN = 1e6
 # reactions in the redundant directions (they do no work: same motion, same energies).
 REGULARISATION = 1e-6
 
-# Full Newton steps for this many iterations, then damped ones (a semi-smooth Newton can
-# cycle between active sets of contact and friction; measured on rigid laws).
+# Full Newton steps for this many iterations, then backtracking on the scaled residual:
+# a semi-smooth Newton can cycle between active sets of contact and friction (measured on
+# the rigid laws, and on linear softening with friction: period-4 cycles of a star whose
+# sprung link toggles between open and slipping); halving the step (at most SHORTEST
+# times) from the last point that lowered the residual breaks the cycle.
 CYCLE = 20
+SHORTEST = 6
 
 # Where the semi-smooth Newton stalls (a link sitting on the kink between stick and slip,
 # measured on the rigid laws with friction: residuals stuck at 1e-10 .. 2e-9 of the star's
@@ -59,12 +63,27 @@ CYCLE = 20
 STALL = 1e-8
 
 # Newton iterations after which the stars still unconverged alternate projected Gauss-Seidel
-# sweeps (_gauss_seidel, up to 300 per call) with full Newton steps from their result (which
+# sweeps (_gauss_seidel, see SWEEPS) with full Newton steps from their result (which
 # finish the job once Gauss-Seidel has found the active set).
 FALLBACK = 30
 
+# Projected Gauss-Seidel sweeps in the first fallback call, doubled at each call up to
+# MAX_SWEEPS: Newton usually finishes after a few hundred, but with friction mu = 0.6 the
+# sweeps crawl (measured: up to 14,455 before the reactions settle, sound-bar with linear
+# softening), and a fixed budget of 300 let each Newton polish undo them.
+SWEEPS = 300
+MAX_SWEEPS = 20000
+
 # Relative size below which a star's own scales give way to the step's largest (see solve).
 FLOOR = 1e-6
+
+
+def step_stiffness(links, m, h, gdim):
+    """The step's own stiffness of each link (Pa/m): m / (h^2 weight), m the mean lumped
+    mass (kg) of its two copies, from the flat mass m; h the step (s). It scales the
+    augmentation of the contact projections, and bounds the springs a star can take."""
+    m_pair = 0.5 * (m[gdim * links.dof_A] + m[gdim * links.dof_B])
+    return m_pair / (h * h * links.weight)
 
 
 class StarNewton:
@@ -84,6 +103,7 @@ class StarNewton:
         self._frame = frame
         self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
         self._all_links = np.arange(len(links))
+        k_step = step_stiffness(links, m, h, d)
         self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
         self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
         self.iterations = 0
@@ -101,10 +121,8 @@ class StarNewton:
             BR[s, l, :, grp.slot_A[s, l], :] = -R
             weight = np.where(grp.valid, links.weight[grp.links], 0.0)
             m_star = m[grp.comps]
-            m_pair = 0.5 * (m_star.reshape(n_s, k, d)[s, grp.slot_A[s, l], 0]
-                            + m_star.reshape(n_s, k, d)[s, grp.slot_B[s, l], 0])
             rho = np.ones((n_s, L))
-            rho[s, l] = m_pair / (h * h * weight[s, l])  # the step's own stiffness, Pa/m
+            rho[s, l] = k_step[grp.links[s, l]]
             fixed = stars.fixed(grp)
             held = fixed.reshape(n_s, k, d).all(axis=2)
             frozen = np.zeros((n_s, L), dtype=bool)  # both copies prescribed
@@ -186,6 +204,10 @@ class StarNewton:
         state_n = self.model.state_at(grp.links)
         mu, shift, cohesion_T = self._mu[grp.links], self._shift[grp.links], self._cohesion_T[grp.links]
         todo = np.arange(n_s)
+        # backtracking (see CYCLE): the last point that lowered each star's residual, and
+        # the Newton step taken from it
+        base_x, base_r, base_scaled = x.copy(), r.copy(), np.full(n_s, np.inf)
+        direction, halvings = np.zeros((n_s, q + L * d)), np.zeros(n_s, dtype=int)
         for iteration in range(1, self.max_iterations + 1):
             BR, w, m, rho, fixed = BR_all[todo], weight_all[todo], m_all[todo], rho_all[todo], fixed_all[todo]
             frozen = frozen_all[todo]
@@ -232,10 +254,22 @@ class StarNewton:
             if iteration >= FALLBACK and (iteration - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 x[todo], r[todo] = self._gauss_seidel(
                     BR[keep], w[keep], m[keep], fixed[keep], valid[keep], law, keep, L, rhs[todo], x[todo],
-                    r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo])
+                    r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo],
+                    sweeps=min(SWEEPS * 2 ** ((iteration - FALLBACK) // 2), MAX_SWEEPS))
                 continue
+            newton = np.ones(len(todo), dtype=bool)  # stars taking a Newton step from here
+            if CYCLE < iteration < FALLBACK:  # a shorter step along the last direction
+                back = (scaled[keep] >= base_scaled[todo]) & (halvings[todo] < SHORTEST)
+                newton = ~back
+                b = todo[back]
+                halvings[b] += 1
+                alpha = 0.5 ** halvings[b][:, None]
+                x[b] = base_x[b] + alpha * direction[b, :q]
+                r[b] = base_r[b] + (alpha * direction[b, q:]).reshape(-1, L, d)
+                a = todo[newton]
+                base_x[a], base_r[a], base_scaled[a], halvings[a] = x[a], r[a], scaled[keep][newton], 0
             reuse = cached[todo] if iteration == 1 else np.zeros(len(todo), dtype=bool)
-            fresh = ~reuse
+            fresh = ~reuse & newton
             if fresh.any():
                 new = keep.copy()
                 new[keep] = fresh
@@ -243,11 +277,11 @@ class StarNewton:
                 J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new], stick, law, jac, new, L)
                 inverse[todo[fresh]] = np.linalg.inv(J)
                 cached[todo[fresh]] = True
-            delta = -np.matmul(inverse[todo], R[:, :, None])[:, :, 0]
-            if CYCLE < iteration < FALLBACK:  # break active-set cycles: shorter, varying steps
-                delta *= 0.5 ** (1 + iteration % 3)
-            x[todo] += delta[:, :q]
-            r[todo] += delta[:, q:].reshape(-1, L, d)
+            a = todo[newton]
+            delta = -np.matmul(inverse[a], R[newton][:, :, None])[:, :, 0]
+            direction[a] = delta
+            x[a] += delta[:, :q]
+            r[a] += delta[:, q:].reshape(-1, L, d)
         else:
             # a star stalled at a stick-slip kink within STALL of its scales is accepted
             self.unconverged += np.count_nonzero(scaled[keep] > STALL)
@@ -260,7 +294,7 @@ class StarNewton:
         return x
 
     def _gauss_seidel(self, BR, w, m, fixed, valid, law, keep, L, rhs, x, r, g_n, dg_pred, mu, shift, cohesion_T,
-                      sweeps=300):
+                      sweeps=SWEEPS):
         """Projected Gauss-Seidel over the links of the given stars (the nonsmooth
         Gauss-Seidel of LMGC90, star by star): with the springs' tangent D of the current
         iterate held, x is linear in r, x = x0 + X r, so the end-of-step jumps are
