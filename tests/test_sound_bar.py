@@ -76,8 +76,12 @@ SOFTENING = ["--set", "interface.law=linear_softening", "--set", "interface.sigm
              "--set", "interface.G_c=0.05", "--set", "interface.mu=0.3", "--set", "mesh.size=0.004"]
 THRESHOLD = ["--set", "interface.law=threshold", "--set", "interface.R_c=4e5",
              "--set", "interface.W_eth=1e-7", "--set", "interface.mu=0.3", "--set", "mesh.size=0.004"]
+# RCCM with friction in 3D, breaking at the free end (tetrahedral stars of ~20-60 copies)
+RCCM_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--set", "mesh.size=0.01",
+           "--set", "interface.law=rccm", "--set", "interface.sigma_c=4e5", "--set", "interface.mu=0.3",
+           "--set", "time.end=4e-5"]
 VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM, "linear-softening": SOFTENING,
-            "threshold": THRESHOLD}
+            "threshold": THRESHOLD, "3d-rccm-friction": RCCM_3D}
 
 
 @pytest.mark.mpi
@@ -91,7 +95,7 @@ def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
     work = one["W_external_J"].max()
     speed = max(np.abs(one[name]).max() for name in one.dtype.names if name.startswith("v"))
     assert np.abs(one["balance_error_J"]).max() < 1e-10 * work  # exact discrete balance, 2D and 3D
-    if variant in ("linear-softening", "threshold"):  # links break, and the same on both layouts
+    if variant in ("linear-softening", "threshold", "3d-rccm-friction"):  # links break, alike on both layouts
         assert one["broken_links"].max() > 10 and one["newton_unconverged"].max() == 0
     for name in one.dtype.names:
         if name.startswith("newton"):

@@ -202,7 +202,10 @@ class StarNewton:
         # threshold and linear-softening runs then failed to converge; cold, they complete)
         r = np.zeros(grp.links.shape + (d,))
         state_n = self.model.state_at(grp.links)
-        mu, shift, cohesion_T = self._mu[grp.links], self._shift[grp.links], self._cohesion_T[grp.links]
+        # padding slots: no cohesion and no friction, so their rows are the identity (open,
+        # r = 0); a cohesive cone there made them stick at rest, a zero row in 3D stars
+        mu, shift, cohesion_T = (np.where(grp.valid, a[grp.links], 0.0)
+                                 for a in (self._mu, self._shift, self._cohesion_T))
         todo = np.arange(n_s)
         # backtracking (see CYCLE): the last point that lowered each star's residual, and
         # the Newton step taken from it
