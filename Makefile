@@ -1,5 +1,5 @@
 # Two commands do everything on a fresh Debian 12 machine (root or sudo):
-#   make demo   install what is missing, then run the main demo
+#   make demo   install what is missing, then run the demos (sound bar, Hopkinson bar BE16)
 #   make test   install what is missing, then run the test suite (MPI tests included)
 SHELL := /bin/bash
 VENV := .venv
@@ -36,6 +36,7 @@ $(VENV)/.installed: pyproject.toml
 
 demo: install
 	$(PY) demos/sound_bar.py
+	$(PY) demos/shpb_be16.py
 
 test: install
 	$(PY) -m pytest -q -rs tests

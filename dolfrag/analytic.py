@@ -64,3 +64,20 @@ def triangular_spall_distance(wavelength, sigma_c, sigma_0):
 def triangular_scab_velocity(sigma_0, sigma_c, rho, c):
     """Scab velocity of a sharp-fronted triangular pulse: (2 sigma_0 - sigma_c) / (rho c), m/s."""
     return (2 * sigma_0 - sigma_c) / (rho * c)
+
+
+def ejection_velocity(sigma_c, rho, E):
+    """Relative velocity (m/s) of the two blocks on either side of a 1D spall plane that
+    opens at the tensile strength sigma_c (Pa): sigma_c / sqrt(rho E) = sigma_c / (rho c),
+    the particle-velocity jump of the unloading wave the crack sends out (PHYSICS.md §3,
+    "Why V_e"); rho kg/m^3, E Pa (the bar modulus)."""
+    return sigma_c / np.sqrt(rho * E)
+
+
+def spall_time(length, delta, c, rise):
+    """Time (s) at which the first spall plane, delta (m) from the free end of a bar of
+    ``length`` (m), reaches the strength under a pulse rising linearly over ``rise`` (s)
+    then decaying linearly, applied at t = 0 on the far end (1D, wave speed c m/s;
+    docs/hopkinson.md §3): the reflected peak has travelled L + delta, rise + (L + delta) / c.
+    """
+    return rise + (length + delta) / c

@@ -253,6 +253,9 @@ class Interface:
     # Coulomb friction; rccm: mu (1 - beta) acts; threshold, linear_softening: on the cone
     # shifted by the cohesion while the link holds
     mu: float | None = _f("float", 0.0, bounds=">= 0", when=_FRICTIONAL)
+    # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
+    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the seed's law)
+    mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=("law", "rccm", "rccm_decoupled"))
 
     def adhesion_energy(self, C_N: float) -> float:
         """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (PHYSICS.md §1)."""
@@ -391,6 +394,9 @@ def _check(case: Case) -> None:
     if case.time.scheme == "theta" and law.law in ("threshold", "linear_softening"):
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
+    if case.time.scheme == "theta" and law.mu_i:
+        raise CaseError(f"interface.mu_i = {law.mu_i!r} with time.scheme = 'theta': not available yet "
+                        "(the contact pressure it needs comes from the imex star solve); use 'imex' or mu_i = 0")
     if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
         raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
                         f"{law.law!r}), Pa")

@@ -15,8 +15,9 @@ from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
-from dolfrag.post.figures import broken_mesh_png
-from dolfrag.post.fragments import breaks_along, fragments
+from dolfrag.post import shpb
+from dolfrag.post.figures import broken_mesh_png, exploded, signal_png
+from dolfrag.post.fragments import breaks_by_time, fragments
 from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
@@ -27,6 +28,9 @@ ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_c
                   "D_numerical_J", "W_external_J", "balance_error_J"]
 ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "numerical", "external_work",
                  "balance_error"]
+# velocity_x.png: each fragment moved off the body's centre by this share of its centroid
+# offset, so that cracks a few micrometres wide show (the seed's Fig. 6)
+EXPLODE = 0.1
 
 
 def interface_model(interface, E, size, n, h, k_step=np.inf):
@@ -41,8 +45,8 @@ def interface_model(interface, E, size, n, h, k_step=np.inf):
     if interface.law == "linear_softening":
         return models.LinearSoftening(n, interface.sigma_c, interface.G_c, interface.mu, k_open=k_step)
     if interface.law == "rccm_decoupled":
-        return models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu)
-    return models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h)
+        return models.RccmDecoupled(n, C_N, C_T, interface.sigma_c, interface.G_c, interface.mu, interface.mu_i)
+    return models.Rccm(n, C_N, C_T, interface.adhesion_energy(C_N), interface.b, interface.mu, h, interface.mu_i)
 
 
 def interface_step(interface, E, size, stars, jump, m, h):
@@ -146,11 +150,15 @@ def run(case, out, quiet=False, comm=None):
                "status": "running"}
     max_error, max_work, energies = 0.0, 0.0, None
     break_time = np.full(len(links), np.nan)  # s, when each link broke
-    pending = list(case.output.fragments_at)  # s, times still to report fragments at
+    free_end = _free_end(case)
+    # s, times still to measure fragments at: the requested ones, and a bar's MEASURE_TIME
+    bar_time = {shpb.MEASURE_TIME} if free_end is not None and case.time.end >= shpb.MEASURE_TIME else set()
+    pending = sorted(set(case.output.fragments_at) | bar_time)
+    measured = {}  # requested time (s): (time of the step nearest it (s), Fragments)
 
-    def current_fragments():
+    def current_fragments(of_cells=False):
         return fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, integ.u.x.array,
-                         break_time)
+                         break_time, of_cells)
     try:
         if 0 in snapshots:
             write_fields(0.0)
@@ -177,8 +185,11 @@ def run(case, out, quiet=False, comm=None):
             if k in snapshots:
                 write_fields(integ.t)
             while pending and integ.t >= pending[0] - integ.h / 2:  # the step nearest to it
-                summary.setdefault("fragments_at", []).append(
-                    {"requested_time_s": pending.pop(0), "time_s": integ.t, **current_fragments().to_dict()})
+                at = pending.pop(0)
+                measured[at] = (integ.t, current_fragments())
+                if at in case.output.fragments_at:
+                    summary.setdefault("fragments_at", []).append(
+                        {"requested_time_s": at, "time_s": integ.t, **measured[at][1].to_dict()})
             progress.update(k)
         summary["status"] = "completed"
     except BaseException as err:
@@ -194,24 +205,30 @@ def run(case, out, quiet=False, comm=None):
         summary["balance_error_relative"] = max_error / max_work if max_work else 0.0
         output.summary(summary)
         output.close()
-    frags = current_fragments()
+    frags, fragment_of_cell = current_fragments(of_cells=True)
     axes = "xyz"[:space.gdim]
     output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
                  np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
                                   integ.model.damage(), integ.model.broken(), break_time]))
     summary["fragments"] = frags.to_dict()
-    free_end = _free_end(case)
     if free_end is not None:
-        along = breaks_along(frags, axis=0, free_end=free_end)
-        first = np.argsort(np.nan_to_num(along.time, nan=np.inf), kind="stable")
-        summary["breaks"] = [{"distance_from_free_end_m": float(along.distance[i]),
-                              "time_s": None if np.isnan(along.time[i]) else float(along.time[i])}
-                             for i in first]
+        summary["breaks"] = breaks_by_time(frags, free_end)
+        measured_at, at_measure = measured.get(shpb.MEASURE_TIME, (integ.t, frags))  # shorter run: the end
+        summary["shpb"] = shpb.shpb_block(frags, at_measure, measured_at, free_end,
+                                          shpb.tensile_strength(case.interface, integ.model.C_N),
+                                          case.material.rho, case.material.E, case.name)
     output.summary(summary)
     if case.output.figures:
-        speed = np.linalg.norm(integ.v.x.array.reshape(-1, space.gdim), axis=1)
-        broken_mesh_png(space, integ.u, speed, Path(out) / "figures" / "velocity.png", "velocity magnitude (m/s)")
+        figures = Path(out) / "figures"
+        v = integ.v.x.array.reshape(-1, space.gdim)
+        broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), figures / "velocity.png",
+                        "velocity magnitude (m/s)")
+        broken_mesh_png(space, integ.u, v[:, 0], figures / "velocity_x.png", "velocity v_x (m/s)", scale=1.0,
+                        cell_offset=exploded(frags, fragment_of_cell, EXPLODE),
+                        note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
+                             f"t = {integ.t * 1e6:.1f} us")
         dof_damage(space, links, integ.model.damage(), damage)
-        broken_mesh_png(space, integ.u, damage.x.array, Path(out) / "figures" / "damage.png",
-                        "damage 1 - beta (-)")
+        broken_mesh_png(space, integ.u, damage.x.array, figures / "damage.png", "damage 1 - beta (-)")
+        signal_png(loads.signal(case.load), case.time.end, figures / "load.png", comm,
+                   f"load on '{case.load.boundary}' ({case.name})")
     return summary

@@ -101,6 +101,16 @@ def test_cut_at_mid_length_gives_two_halves_with_their_masses_and_velocities(set
     assert breaks_along(frags, free_end=LENGTH).distance == pytest.approx(LENGTH - gap)
 
 
+def test_each_cell_knows_its_fragment(setup):
+    space, links, mass = setup
+    planes = [LENGTH / 4, LENGTH / 2, 3 * LENGTH / 4]
+    frags, of_cell = fragments(space, links, cut(space, links, planes), mass, np.zeros_like(mass),
+                               of_cells=True)
+    # the fragments are ordered by centroid x: fragment i is the band i
+    assert np.array_equal(of_cell, bands(space, planes)[:space.n_owned_cells])
+    assert np.array_equal(np.bincount(of_cell), frags.cells)
+
+
 def test_displacement_moves_centroid_and_bbox_of_the_displaced_fragment(setup):
     space, links, mass = setup
     planes = [LENGTH / 2]

@@ -506,3 +506,24 @@ def test_laws_do_not_modify_their_inputs():
     laws.threshold(a["g_N"], a["broken"], 1e6, 1e-6)
     contact.contact_friction_projection(a["r_N"], a["r_T"], a["g_N"], a["g_T"], 7e13, 3e13,
                                         a["mu"], a["shift"])
+
+
+def test_mohr_coulomb_shear_needs_the_shear_traction_above_mu_i_times_the_pressure():
+    C, w, beta_n, mu_i = 1e13, 10.0, np.ones(4), 0.6
+    p = np.array([0.0, 5e6, 5e6, 5e6])  # Pa: tension, then pressed links
+    tau = np.array([2e6, 2e6, 3.1e6, 8e6])  # Pa: shear tractions C_T |g_T|
+    g_T = (tau / C)[:, None] * np.array([[0.6, 0.8]])  # 3D: two tangential components
+    drive = laws.mohr_coulomb_shear(g_T, p, beta_n**2, C, mu_i)
+    # the excess shear mu_i p = 3 MPa: none below it, the excess above it, the direction kept
+    excess = np.array([2e6, 0.0, 0.1e6, 5e6])
+    assert np.linalg.norm(drive, axis=1) * C == pytest.approx(excess, rel=1e-12, abs=1e-3)
+    assert drive[3] / np.linalg.norm(drive[3]) == pytest.approx([0.6, 0.8])
+    # RCCM damage then starts at sqrt(C_T w) + mu_i p in shear, not at sqrt(C_T w)
+    peak = np.sqrt(C * w)  # 10 MPa
+    pressed = np.full(2, 5e6)
+    shear = np.array([[peak + mu_i * 5e6 - 1e3], [peak + mu_i * 5e6 + 1e5]]) / C
+    beta = laws.rccm(np.zeros(2), laws.mohr_coulomb_shear(shear, pressed, np.ones(2), C, mu_i),
+                     np.ones(2), C, C, w)[-1]
+    assert beta[0] == 1.0 and beta[1] < 1.0
+    # mu_i = 0 is the seed's law
+    assert laws.mohr_coulomb_shear(g_T, p, beta_n**2, C, 0.0) == pytest.approx(g_T, rel=1e-15)

@@ -120,6 +120,30 @@ def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
             beta)
 
 
+def mohr_coulomb_shear(g_T, r_N, secant, C_T, mu_i):
+    """The shear jump that drives RCCM damage under compression (Mohr-Coulomb type).
+
+    symbol  meaning                                          unit    shape
+    g_T     tangential jump                                  m       (n, d-1)
+    r_N     contact pressure, >= 0 in compression            Pa      (n,)
+    secant  the springs' factor beta_n^2                     -       (n,)
+    C_T     tangential stiffness                             Pa/m    scalar or (n,)
+    mu_i    internal friction of the intact material         -       scalar
+
+    RCCM drives damage with C_T |g_T|^2 even under compression, so a pressed inclined facet
+    fails in shear at sqrt(C_T w), however hard it is pressed (PHYSICS.md §3). Here only the
+    shear traction above mu_i r_N counts: g_T is scaled to the length
+    max(|g_T| - mu_i r_N / (secant C_T), 0). In tension (r_N = 0) and for mu_i = 0 it is g_T.
+    Returns (n, d-1) m.
+    """
+    g_T = np.asarray(g_T, dtype=float)
+    norm = np.linalg.norm(g_T, axis=-1)
+    resisted = np.divide(mu_i * np.maximum(r_N, 0.0), secant * np.asarray(C_T, dtype=float),
+                         out=np.full(norm.shape, np.inf), where=secant > 0)
+    factor = np.divide(np.maximum(norm - resisted, 0.0), norm, out=np.zeros_like(norm), where=norm > 0)
+    return factor[:, None] * g_T
+
+
 def rccm_energy(g_N, g_T, beta, C_N, C_T):
     """Stored elastic energy of the RCCM springs (PHYSICS.md §1), J/m^2, (n,).
 

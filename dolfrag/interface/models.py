@@ -53,13 +53,16 @@ class Rccm:
     friction mu (1 - beta). State: beta (n_links,), 1 sound .. 0 broken.
 
     C_N, C_T Pa/m; w J/m^2 (peak traction sqrt(C_N w)); b J s/m^2 (0: rate-independent);
-    mu -; h s (time step, for the viscous update).
+    mu -; h s (time step, for the viscous update); mu_i - (internal friction: the shear
+    that drives damage is reduced by mu_i times the contact pressure,
+    laws.mohr_coulomb_shear; 0 is the seed's law).
     """
 
     can_break = True
 
-    def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None):
+    def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None, mu_i=0.0):
         self.C_N, self.C_T, self.w, self.b, self.mu, self.h = C_N, C_T, w, b, mu, h
+        self.mu_i = mu_i
         self.beta = np.ones(n_links)
         self.released = np.zeros(n_links)  # J/m^2 per link, see store
 
@@ -78,10 +81,11 @@ class Rccm:
     def absorb(self, work):
         """Cohesive work of the constraint: none (no shift)."""
 
-    def cohesion(self, g_N, g_T, beta_n):
+    def cohesion(self, g_N, g_T, beta_n, r_N=None):
         """Traction of the step, with the damage lagged by one step: r = beta_n^2 C g
         (normal part in opening only), its tangent beta_n^2 C, and the damage the law gives
-        at these jumps (the state after the step).
+        at these jumps (the state after the step); r_N (Pa, >= 0 in compression, or None):
+        the contact pressure of the same iterate, for mu_i.
 
         Why lagged: with beta implicit, a star whose softening stiffness exceeds its mass
         term (h^2/4 w |dr/dg| > m, always the case at C = 10-100 E/h) has several solutions,
@@ -89,7 +93,9 @@ class Rccm:
         in the same run (measured). Lagged, each star problem is monotone (unique), and the
         energy the drop beta_n -> beta frees is booked exactly (store)."""
         secant = beta_n**2
-        beta = self.envelope(g_N, g_T, beta_n)
+        drive = g_T if r_N is None or self.mu_i == 0 else laws.mohr_coulomb_shear(g_T, r_N, secant, self.C_T,
+                                                                                 self.mu_i)
+        beta = self.envelope(g_N, drive, beta_n)
         m = g_T.shape[1]
         zeros = np.zeros((len(beta), m))
         return Cohesion(secant * self.C_N * np.maximum(g_N, 0.0), secant[:, None] * self.C_T * g_T,
@@ -136,8 +142,8 @@ class RccmDecoupled(Rccm):
     rises to sigma_c, then falls linearly to zero at 2 G_c / sigma_c. Everything else
     (lagged secant, contact, friction mu (1 - beta), energy booking) is Rccm's."""
 
-    def __init__(self, n_links, C_N, C_T, sigma_c, G_c, mu=0.0):
-        super().__init__(n_links, C_N, C_T, w=G_c, mu=mu)
+    def __init__(self, n_links, C_N, C_T, sigma_c, G_c, mu=0.0, mu_i=0.0):
+        super().__init__(n_links, C_N, C_T, w=G_c, mu=mu, mu_i=mu_i)
         self.sigma_c, self.G_c = sigma_c, G_c
 
     def envelope(self, g_N, g_T, beta_n):
@@ -206,7 +212,7 @@ class Threshold(_Rigid):
     def shear_cohesion(self, lost):
         return np.zeros_like(lost)
 
-    def cohesion(self, g_N, g_T, lost_n):
+    def cohesion(self, g_N, g_T, lost_n, r_N=None):
         """No springs: the whole law is in the shifted contact constraint."""
         return _no_springs(g_T, lost_n)
 
@@ -283,7 +289,7 @@ class LinearSoftening(_Rigid):
         inside = (state > 0) & (state < self.delta_c)
         return np.where(inside, self.sigma_c * (1 / np.where(inside, state, 1.0) - 1 / self.delta_c), 0.0)
 
-    def cohesion(self, g_N, g_T, state_n):
+    def cohesion(self, g_N, g_T, state_n, r_N=None):
         """Secant springs at the lagged state_n (none on rigid links: the constraint
         carries them)."""
         S = self.secant(state_n)

@@ -6,28 +6,33 @@ import numpy as np
 from mpi4py import MPI
 
 
-def _gather_broken_mesh(space, displacement, values):
-    """Owned cells' corner coordinates (+ displacement, flat per dof component) and
-    per-dof values, gathered on rank 0 (None elsewhere)."""
+def _gather_broken_mesh(space, displacement, values, cell_offset=None):
+    """Owned cells' corner coordinates (+ displacement, flat per dof component, + the
+    cell's offset (n_owned_cells, gdim) if given) and per-dof values, gathered on rank 0
+    (None elsewhere)."""
     corners = space.cell_dofs[:space.n_owned_cells].ravel()
     points = space.x[corners] + displacement.reshape(-1, space.gdim)[corners]
+    if cell_offset is not None:
+        points += np.repeat(cell_offset, space.gdim + 1, axis=0)
     gathered = space.mesh.comm.gather((points, values[corners]), root=0)
     if gathered is None:
         return None
     return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
 
 
-def broken_mesh_png(space, u, values, path, label, scale=None):
+def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note=""):
     """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
     one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
-    displacement is drawn as 2 % of the body size. Collective; rank 0 draws."""
+    displacement is drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m:
+    moves each owned cell as a whole (e.g. ``exploded``). ``note`` is added to the caption.
+    Collective; rank 0 draws."""
     d = space.gdim
     comm = space.mesh.comm
     umax = comm.allreduce(np.abs(u.x.array[:space.n_owned_dofs * d]).max(initial=0.0), op=MPI.MAX)
     size = comm.allreduce(np.ptp(space.x, axis=0).max() if len(space.x) else 0.0, op=MPI.MAX)
     if scale is None:
         scale = 0.02 * size / umax if umax > 0 else 1.0
-    data = _gather_broken_mesh(space, scale * u.x.array, values)
+    data = _gather_broken_mesh(space, scale * u.x.array, values, cell_offset)
     if data is None:
         return
     try:
@@ -48,8 +53,43 @@ def broken_mesh_png(space, u, values, path, label, scale=None):
     plotter = pv.Plotter(off_screen=True, window_size=(1200, 600))
     plotter.add_mesh(grid, scalars=label, cmap="viridis",
                      scalar_bar_args={"title": label, "vertical": False})
-    plotter.add_text(f"displacement x {scale:.3g}", font_size=10)
+    plotter.add_text(f"displacement x {scale:.3g}" + (f"; {note}" if note else ""), font_size=10)
     if d == 2:
         plotter.view_xy()
     plotter.screenshot(str(path))
     plotter.close()
+
+
+def exploded(frags, fragment_of_cell, spread):
+    """Offset (n_owned_cells, gdim) m of each owned cell for an exploded view: its
+    fragment's centroid offset from the body's mass centre, times ``spread`` (-). Every cut
+    facet then opens by ``spread`` times the distance between the two fragments' centroids.
+    frags: post.fragments.Fragments; fragment_of_cell (n_owned_cells,) int, from
+    ``fragments(..., of_cells=True)``."""
+    centre = frags.mass @ frags.centroid / frags.mass.sum()
+    return spread * (frags.centroid - centre)[fragment_of_cell]
+
+
+def signal_png(signal, t_end, path, comm, title=""):
+    """The load's pressure p(t) (``signal``: Pa, a vectorised function of t in s) over
+    [0, t_end] s, drawn with matplotlib in µs and MPa. Collective; rank 0 draws."""
+    if comm.rank != 0:
+        return
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"matplotlib is not installed: {path} not drawn (pip install matplotlib)", file=sys.stderr)
+        return
+    t = np.linspace(0.0, t_end, 2001)
+    fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
+    ax.plot(1e6 * t, 1e-6 * signal(t))
+    ax.set_xlabel("time t (µs)")
+    ax.set_ylabel("pressure p (MPa), > 0 pushes in")
+    ax.set_xlim(0.0, 1e6 * t_end)
+    ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

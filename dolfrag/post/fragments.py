@@ -99,7 +99,8 @@ def _reduce(order, starts, values, ufunc=np.add):
 
 
 def _combine(n_cells, cell_rows, facet_rows):
-    """Fragments from the gathered rows of all ranks (on rank 0)."""
+    """Fragments from the gathered rows of all ranks (on rank 0), and the fragment of
+    every cell (n_cells,) int64, by global cell index."""
     gidx = np.concatenate([r[0] for r in cell_rows])
     fields = []
     for j in range(5):  # mass, momentum, moment, min corner, max corner
@@ -133,7 +134,7 @@ def _combine(n_cells, cell_rows, facet_rows):
     position[sort] = np.arange(k)
     neighbours, separated_at = _separations(position[labels], key[~joined], facet_time[~joined], n_cells)
     return Fragments(m[sort], centroid[sort], velocity[sort], bbox_min[sort], bbox_max[sort],
-                     count[sort], neighbours, separated_at)
+                     count[sort], neighbours, separated_at), position[labels]
 
 
 def _separations(fragment_of_cell, cut_keys, cut_time, n_cells):
@@ -147,7 +148,7 @@ def _separations(fragment_of_cell, cut_keys, cut_time, n_cells):
     return np.stack([pair_key // k, pair_key % k], axis=1), np.where(np.isinf(time), np.nan, time)
 
 
-def fragments(space, links, broken, mass, velocity, displacement=None, break_time=None):
+def fragments(space, links, broken, mass, velocity, displacement=None, break_time=None, of_cells=False):
     """The fragments of the body (module rule). Collective. Every rank returns the same
     Fragments, whatever the number of ranks. Reads its inputs and never changes them.
 
@@ -157,7 +158,8 @@ def fragments(space, links, broken, mass, velocity, displacement=None, break_tim
     velocity, displacement: flat dof arrays like ``Function.x.array``, m/s and m. Only
     the owned values are read. The centroid and bbox include the displacement if
     one is given. break_time (n_owned_links,) s: when each broken link broke (NaN for
-    the others), for ``separated_at``.
+    the others), for ``separated_at``. of_cells: also return the fragment (index into
+    the Fragments) of each owned cell, (n_owned_cells,) int64.
     """
     broken = np.asarray(broken)
     if broken.shape != (len(links),):
@@ -171,8 +173,11 @@ def fragments(space, links, broken, mass, velocity, displacement=None, break_tim
     if break_time is None:
         break_time = np.full(len(links), np.nan)
     facet_rows = comm.gather(_facet_rows(space, links, broken, np.asarray(break_time, dtype=float)), root=0)
-    result = _combine(imap.size_global, cell_rows, facet_rows) if comm.rank == 0 else None
-    return comm.bcast(result, root=0)
+    result, of_cell = _combine(imap.size_global, cell_rows, facet_rows) if comm.rank == 0 else (None, None)
+    frags = comm.bcast(result, root=0)
+    if not of_cells:
+        return frags
+    return frags, comm.scatter([of_cell[rows[0]] for rows in cell_rows] if comm.rank == 0 else None, root=0)
 
 
 class Breaks(NamedTuple):
@@ -203,3 +208,12 @@ def breaks_along(frags, axis=0, free_end=None):
     distance = np.abs(free_end - position)
     nearest = np.argsort(distance, kind="stable")
     return Breaks(distance[nearest], time[nearest])
+
+
+def breaks_by_time(frags, free_end, axis=0):
+    """JSON-ready breaks of a bar (``breaks_along`` from ``free_end``, m): a list of
+    {distance_from_free_end_m, time_s}, first to complete first, unknown times (None) last."""
+    along = breaks_along(frags, axis=axis, free_end=free_end)
+    first = np.argsort(np.nan_to_num(along.time, nan=np.inf), kind="stable")
+    return [{"distance_from_free_end_m": float(along.distance[i]),
+             "time_s": None if np.isnan(along.time[i]) else float(along.time[i])} for i in first]

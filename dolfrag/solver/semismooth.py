@@ -220,10 +220,10 @@ class StarNewton:
             slip = dg_pred[todo] + h * Bx
             g_end = g_n[todo] + slip
             g_end[..., 0] = np.where(valid, g_end[..., 0], 1.0)  # padding: open, so r stays 0
-            law = self.model.cohesion(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1),
-                                      state_n[todo].ravel())
-            r_coh = np.concatenate([law.r_N[:, None], law.r_T], axis=1).reshape(-1, L, d)
             rt = r[todo]
+            law = self.model.cohesion(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1),
+                                      state_n[todo].ravel(), rt[..., 0].ravel())
+            r_coh = np.concatenate([law.r_N[:, None], law.r_T], axis=1).reshape(-1, L, d)
             t = (r_coh - rt) * w[..., None]
             interface_force = h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
             R_m = m * x[todo] - rhs[todo] + interface_force
