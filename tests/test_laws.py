@@ -516,6 +516,7 @@ def test_mohr_coulomb_shear_needs_the_shear_traction_above_mu_i_times_the_pressu
     drive = laws.mohr_coulomb_shear(g_T, p, beta_n**2, C, mu_i)
     # the excess shear mu_i p = 3 MPa: none below it, the excess above it, the direction kept
     excess = np.array([2e6, 0.0, 0.1e6, 5e6])
+    # closed-form arithmetic: round-off only (1e-12 relative; 1 mPa absolute for the zero)
     assert np.linalg.norm(drive, axis=1) * C == pytest.approx(excess, rel=1e-12, abs=1e-3)
     assert drive[3] / np.linalg.norm(drive[3]) == pytest.approx([0.6, 0.8])
     # RCCM damage then starts at sqrt(C_T w) + mu_i p in shear, not at sqrt(C_T w)
@@ -525,5 +526,5 @@ def test_mohr_coulomb_shear_needs_the_shear_traction_above_mu_i_times_the_pressu
     beta = laws.rccm(np.zeros(2), laws.mohr_coulomb_shear(shear, pressed, np.ones(2), C, mu_i),
                      np.ones(2), C, C, w)[-1]
     assert beta[0] == 1.0 and beta[1] < 1.0
-    # mu_i = 0 is the seed's law
+    # mu_i = 0 is the seed's law: g_T unchanged to round-off
     assert laws.mohr_coulomb_shear(g_T, p, beta_n**2, C, 0.0) == pytest.approx(g_T, rel=1e-15)
