@@ -75,7 +75,7 @@ def test_damage_run_gives_the_same_broken_links_and_fragments_on_one_and_two_ran
     (one, summary_one), (two, summary_two) = fragmenting_runs
     assert np.array_equal(one["broken_links"], two["broken_links"])
     # links.csv: one row per link, gathered from the ranks; the same broken links, broken at
-    # the same steps, wherever they sit
+    # the same steps, wherever they sit (positions and break times equal to round-off: 1e-12)
     tables = [np.genfromtxt(fragmenting_runs.out / r / "links.csv", delimiter=",", names=True)
               for r in ("one", "two")]
     keys = [np.lexsort((t["weight"], t["ny"], t["nx"], t["y"], t["x"])) for t in tables]  # vertex, facet

@@ -207,10 +207,6 @@ class StarNewton:
         mu, shift, cohesion_T = (np.where(grp.valid, a[grp.links], 0.0)
                                  for a in (self._mu, self._shift, self._cohesion_T))
         todo = np.arange(n_s)
-        # backtracking (see CYCLE): the last point that lowered each star's residual, and
-        # the Newton step taken from it
-        base_x, base_r, base_scaled = x.copy(), r.copy(), np.full(n_s, np.inf)
-        direction, halvings = np.zeros((n_s, q + L * d)), np.zeros(n_s, dtype=int)
         for iteration in range(1, self.max_iterations + 1):
             BR, w, m, rho, fixed = BR_all[todo], weight_all[todo], m_all[todo], rho_all[todo], fixed_all[todo]
             frozen = frozen_all[todo]
@@ -262,6 +258,10 @@ class StarNewton:
                 continue
             newton = np.ones(len(todo), dtype=bool)  # stars taking a Newton step from here
             if CYCLE < iteration < FALLBACK:  # a shorter step along the last direction
+                if iteration == CYCLE + 1:  # backtracking state, made only for the rare stars that get here:
+                    # the last point that lowered each star's residual, and the Newton step taken from it
+                    base_x, base_r, base_scaled = x.copy(), r.copy(), np.full(n_s, np.inf)
+                    direction, halvings = np.zeros((n_s, q + L * d)), np.zeros(n_s, dtype=int)
                 back = (scaled[keep] >= base_scaled[todo]) & (halvings[todo] < SHORTEST)
                 newton = ~back
                 b = todo[back]
@@ -282,7 +282,8 @@ class StarNewton:
                 cached[todo[fresh]] = True
             a = todo[newton]
             delta = -np.matmul(inverse[a], R[newton][:, :, None])[:, :, 0]
-            direction[a] = delta
+            if CYCLE < iteration < FALLBACK:
+                direction[a] = delta
             x[a] += delta[:, :q]
             r[a] += delta[:, q:].reshape(-1, L, d)
         else:
