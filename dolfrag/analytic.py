@@ -1,5 +1,7 @@
 """Closed forms used for validation. One pure function per formula, SI units; nothing
 runs on import."""
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -81,3 +83,185 @@ def spall_time(length, delta, c, rise):
     docs/hopkinson.md §3): the reflected peak has travelled L + delta, rise + (L + delta) / c.
     """
     return rise + (length + delta) / c
+
+
+# Single-degree-of-freedom model of a one-way wall strip (Biggs 1964, "Introduction to
+# Structural Dynamics", ch. 5, table 5.1; UFC 3-340-02 ch. 3; PHYSICS.md §7). Everything is
+# per metre of wall width: loads and resistances are total forces on the strip (N/m), the
+# pressure being p = F / L.
+
+# Biggs's tabulated factors for a uniformly loaded strip with distributed mass. K_LM is his
+# rounded column, not K_M / K_L (0.41 / 0.53 = 0.774): PHYSICS.md §7's f = 396 Hz uses 0.77.
+# The plastic row is the mechanism: one midspan hinge (simple) or three hinges (clamped).
+_TRANSFORMATION_FACTORS = {
+    "clamped": {"K_L": 0.53, "K_M": 0.41, "K_LM": 0.77, "K_LM_plastic": 0.66},
+    "simple": {"K_L": 0.64, "K_M": 0.50, "K_LM": 0.78, "K_LM_plastic": 0.66},
+}
+# 384 EI / (c L^3) relates the total load F = p L to the midspan deflection, elastic range.
+_STIFFNESS_DIVISOR = {"clamped": 1.0, "simple": 5.0}
+
+
+def _check_supports(supports):
+    if supports not in _TRANSFORMATION_FACTORS:
+        raise ValueError(f"supports must be one of {sorted(_TRANSFORMATION_FACTORS)}, "
+                         f"got {supports!r}")
+
+
+@dataclass(frozen=True)
+class StripSDOF:
+    """Equivalent SDOF of a one-way strip, per metre of width (Biggs 1964, table 5.1).
+
+    span     L, m
+    M        total mass rho h L, kg/m
+    EI       bending stiffness, N m^2/m
+    k        elastic stiffness, total load F = p L per midspan deflection, N/m per m (= N/m^2)
+    K_L, K_M load and mass factors, elastic range
+    K_LM     load-mass factor, elastic range
+    K_LM_plastic  load-mass factor of the plastic mechanism
+    """
+    span: float
+    M: float
+    EI: float
+    k: float
+    K_L: float
+    K_M: float
+    K_LM: float
+    K_LM_plastic: float
+
+    @property
+    def omega(self):
+        """Elastic circular frequency sqrt(k / (K_LM M)), rad/s."""
+        return np.sqrt(self.k / (self.K_LM * self.M))
+
+    @property
+    def f(self):
+        """Elastic natural frequency omega / (2 pi), Hz."""
+        return self.omega / (2 * np.pi)
+
+    @property
+    def T(self):
+        """Elastic natural period 1 / f, s."""
+        return 1 / self.f
+
+
+def strip_properties(E, rho, thickness, span, supports, nu=0.0):
+    """SDOF properties of a one-way strip of a wall under uniform pressure, per metre of
+    width (Biggs 1964, table 5.1; PHYSICS.md §7).
+
+    E Pa, rho kg/m^3, thickness h m, span L m; supports "clamped" (fixed-fixed) or "simple".
+    nu: Poisson's ratio of cylindrical bending, EI = E h^3 / (12 (1 - nu^2)). The default 0
+    gives the beam value EI_g of PHYSICS.md §7; a plane-strain 2D section of the wall (the
+    strip cannot contract across its width) bends with the bulk nu (0.2: EI +4 %, f +2 %).
+    M = rho h L (kg/m); k = 384 EI / L^3 clamped, 384 EI / (5 L^3) simple (N/m per m);
+    f = sqrt(k / (K_LM M)) / (2 pi). Raises ValueError for other supports.
+    """
+    _check_supports(supports)
+    EI = E * thickness**3 / (12 * (1 - nu**2))
+    k = 384 * EI / (_STIFFNESS_DIVISOR[supports] * span**3)
+    return StripSDOF(span=span, M=rho * thickness * span, EI=EI, k=k,
+                     **_TRANSFORMATION_FACTORS[supports])
+
+
+def bending_resistance(M_ps, M_pm, span, supports):
+    """Ultimate resistance R_m of a uniformly loaded one-way strip (Biggs 1964, table 5.1;
+    PHYSICS.md §7): the total load per metre of width (N/m) that forms the mechanism,
+    8 (M_ps + M_pm) / L clamped, 8 M_pm / L simple. M_ps, M_pm: plastic moments at the
+    supports and at midspan, N m/m; span L, m. The pressure is R_m / L (Pa)."""
+    _check_supports(supports)
+    if supports == "clamped":
+        return 8 * (M_ps + M_pm) / span
+    return 8 * M_pm / span
+
+
+def rebar_plastic_moment(area_per_width, f_y, d, f_c):
+    """Plastic moment of an under-reinforced section, per metre of width (N m/m): the
+    Whitney stress block of UFC 3-340-02 ch. 4 (and ACI 318), M_p = A_s f_y (d - a / 2),
+    a = A_s f_y / (0.85 f_c). A_s: tension steel area per width, m^2/m; f_y: steel yield
+    stress, Pa; d: depth of that steel from the compressed face, m; f_c: concrete compressive
+    strength, Pa. Static strengths in, static moment out: dynamic increase factors are the
+    caller's choice."""
+    a = area_per_width * f_y / (0.85 * f_c)
+    return area_per_width * f_y * (d - a / 2)
+
+
+def sdof_response(props, pressure, t_end, dt=None, resistance=None, K_LM=None):
+    """Midspan deflection history of a strip SDOF from rest (Biggs 1964 ch. 5; PHYSICS.md §7):
+    K_LM M y'' + R(y) = F(t) = p(t) L.
+
+    props StripSDOF; pressure: p(t) in Pa, vectorised over t (s); t_end s.
+    resistance: None for R = k y, or R_m (N/m, e.g. bending_resistance) for an
+    elastic-perfectly-plastic R = k (y - y_p) limited to +-R_m (same resistance in rebound).
+    K_LM: None uses props.K_LM while elastic and props.K_LM_plastic while yielding, with y
+    and y' continuous at the switch as in Biggs's range-by-range integration (kinetic energy
+    jumps there); a number fixes one factor for the whole history.
+    dt: the step, s; the default min(T / 200, t_end / 2000) keeps the scheme's period error
+    (omega dt)^2 / 12 below 1e-4 and samples the load 2000 times: pass a smaller dt for load
+    features shorter than ~t_end / 100.
+    Average-acceleration Newmark (trapezoidal rule; unconditionally stable, second order, no
+    numerical damping); each step is solved exactly on the elastic or the yielding branch,
+    picked by an elastic trial.
+    Returns t (n + 1,) s and y (n + 1,) m, y > 0 in the direction of p > 0.
+    """
+    if dt is None:
+        dt = min(props.T / 200, t_end / 2000)
+    n = int(np.ceil(t_end / dt))
+    t = np.linspace(0.0, t_end, n + 1)
+    h = t[1] - t[0]
+    F = np.broadcast_to(np.asarray(pressure(t), dtype=float) * props.span, t.shape)
+    m_elastic = (props.K_LM if K_LM is None else K_LM) * props.M
+    m_plastic = (props.K_LM_plastic if K_LM is None else K_LM) * props.M
+    R_m = np.inf if resistance is None else resistance
+    k = props.k
+    c = 4 / h**2
+    y = np.zeros(n + 1)
+    v, a, y_p = 0.0, F[0] / m_elastic, 0.0
+    for i in range(1, n + 1):
+        # Newmark: a_{i} = c (y_i - y_star), v_i = v_{i-1} + h (a_{i-1} + a_i) / 2
+        y_star = y[i - 1] + h * v + h**2 / 4 * a
+        y_i = (F[i] + m_elastic * c * y_star + k * y_p) / (m_elastic * c + k)
+        R = k * (y_i - y_p)
+        if abs(R) > R_m:
+            R = np.copysign(R_m, R)
+            y_i = y_star + (F[i] - R) / (m_plastic * c)
+            y_p = y_i - R / k
+        a_i = c * (y_i - y_star)
+        v += h / 2 * (a + a_i)
+        a = a_i
+        y[i] = y_i
+    return t, y
+
+
+def sdof_peak_deflection(props, pressure, t_end, dt=None, resistance=None, K_LM=None):
+    """Largest midspan deflection (m) of sdof_response (same arguments) and its time (s)."""
+    t, y = sdof_response(props, pressure, t_end, dt=dt, resistance=resistance, K_LM=K_LM)
+    i = np.argmax(y)
+    return y[i], t[i]
+
+
+def step_load_peak_deflection(F_0, k, R_m=np.inf):
+    """Peak deflection (m) of an SDOF from rest under a step load F_0 (N/m), elastic stiffness
+    k (N/m per m), elastic-perfectly-plastic with resistance R_m (N/m) (Biggs 1964 ch. 2 and 5):
+    2 F_0 / k (dynamic load factor 2) while 2 F_0 <= R_m; else, from F_0 y_max =
+    R_m (y_max - y_e / 2) with y_e = R_m / k, y_max = R_m y_e / (2 (R_m - F_0)); inf when
+    F_0 >= R_m (no bound). Independent of the mass. Vectorised over F_0 and R_m."""
+    F_0, R_m = np.broadcast_arrays(np.asarray(F_0, dtype=float), np.asarray(R_m, dtype=float))
+    # the plastic branch is evaluated everywhere, including where it is discarded (R_m = inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        plastic = R_m**2 / (2 * k * (R_m - F_0))
+    return np.where(2 * F_0 <= R_m, 2 * F_0 / k, np.where(F_0 < R_m, plastic, np.inf))
+
+
+def impulsive_elastic_deflection(impulse, K_LM, M, k):
+    """Peak deflection (m) of an elastic SDOF under a pulse much shorter than its period
+    (Biggs 1964 ch. 2): the impulse gives the velocity impulse / (K_LM M), hence
+    y_max = impulse / (K_LM M omega) = impulse / sqrt(K_LM M k). impulse: int F dt, N s/m
+    (the pressure impulse times L); M kg/m; k N/m per m."""
+    return impulse / np.sqrt(K_LM * M * k)
+
+
+def rigid_plastic_impulsive_deflection(impulse, K_LM, M, R_m):
+    """Peak deflection (m) of a rigid-plastic SDOF under a short pulse (PHYSICS.md §7): the
+    kinetic energy impulse^2 / (2 K_LM M) is dissipated by R_m,
+    y_max = impulse^2 / (2 K_LM M R_m). impulse N s/m, M kg/m, R_m N/m; the same formula holds
+    per square metre (Pa s, kg/m^2, Pa)."""
+    return impulse**2 / (2 * K_LM * M * R_m)

@@ -2,6 +2,11 @@
 
     dolfrag run CASE [--out DIR] [--set section.key=value ...] [--quiet]
     dolfrag cases [NAME]
+    dolfrag loads CASE [--set section.key=value ...] [--out PNG]
+
+`loads` plots the case's pressure p(t) over [0, time.end] (default PNG:
+results/<case name>/load.png) and prints the PNG path, then the signal's peak (Pa)
+and its time (s), impulse (Pa s) and duration (s) as `name = value` lines.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
 and one line naming the key, the value and what is allowed.
@@ -9,6 +14,7 @@ and one line naming the key, the value and what is allowed.
 import argparse
 import sys
 import traceback
+from pathlib import Path
 
 from mpi4py import MPI
 
@@ -27,7 +33,27 @@ def _parser():
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     cases = sub.add_parser("cases", help="list built-in cases, or print one as TOML")
     cases.add_argument("name", nargs="?")
+    plot = sub.add_parser("loads", help="plot a case's load signal p(t) to PNG, print peak and impulse")
+    plot.add_argument("case", help="case file (.toml) or built-in case name")
+    plot.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                      help="override a case parameter, e.g. --set load.peak=2e6 (repeatable)")
+    plot.add_argument("--out", help="PNG file (default: results/<case name>/load.png)")
     return parser
+
+
+def _plot_load(case, out, comm):
+    """Draw the case's p(t) over [0, time.end] and print the path, peak, impulse, duration."""
+    from dolfrag import loads
+    from dolfrag.post.figures import signal_png
+    peak, peak_time, impulse, duration = loads.signal_summary(case.load)
+    path = Path(out or f"results/{case.name}/load.png")
+    if comm.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    signal_png(loads.signal(case.load), case.time.end, path, comm,
+               f"{case.load.signal} on '{case.load.boundary}': peak {peak:.3g} Pa, impulse {impulse:.3g} Pa s")
+    if comm.rank == 0:
+        print(f"{path}\npeak_Pa = {peak:.6g}\npeak_time_s = {peak_time:.6g}\n"
+              f"impulse_Pa_s = {impulse:.6g}\nduration_s = {duration:.6g}")
 
 
 def main(argv=None):
@@ -39,6 +65,9 @@ def main(argv=None):
                 print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
             return 0
         case = load_case(args.case, args.set)
+        if args.command == "loads":
+            _plot_load(case, args.out, comm)
+            return 0
         from dolfrag.runner import run
         summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
     except CaseError as err:

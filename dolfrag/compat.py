@@ -9,6 +9,7 @@ import ufl
 import dolfinx
 import dolfinx.cpp
 import dolfinx.fem.petsc
+import dolfinx.geometry
 import dolfinx.io
 from dolfinx.io import gmshio
 
@@ -153,3 +154,13 @@ def vtk_file(comm, path):
 
 def facet_measure(msh, facet_tags):
     return ufl.Measure("ds", domain=msh, subdomain_data=facet_tags)
+
+
+def bounding_box_tree(msh, dim):
+    """Bounding-box tree of the local (owned and ghost) entities of dimension dim."""
+    return dolfinx.geometry.BoundingBoxTree(msh, dim)
+
+
+def point_candidates(tree, points):
+    """AdjacencyList of the entities whose boxes hold each point (n, 3)."""
+    return dolfinx.geometry.compute_collisions(tree, points)

@@ -24,10 +24,14 @@ Example::
 
     [load]
     boundary = "left"
-    signal = "triangular"        # or "table" with file = "pulse.csv" (columns t [s], p [Pa])
+    signal = "triangular"        # | "friedlander" | "deflagration" | "detonation" | "table"
     peak = 1.0e6                 # Pa, positive pushes into the body
     rise = 1.0e-5                # s
     duration = 2.0e-5            # s
+    # optional local over-pressure: factor x p(t) on the part of the boundary in a box
+    # region_min = [0.0, 0.01]   # m, lower corner (one coordinate per axis)
+    # region_max = [0.0, 0.03]   # m, upper corner
+    # region_factor = 2.0
 
     [supports]
     rollers = ["bottom", "top"]
@@ -57,7 +61,7 @@ import numpy as np
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
 LAWS = ("elastic", "rccm", "rccm_decoupled", "threshold", "linear_softening")
-SIGNALS = ("triangular", "table")
+SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "table")
 SCHEMES = ("imex", "theta")
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
@@ -77,9 +81,9 @@ _REQ = object()  # spec default meaning "required"
 _OPS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}
 _NOUNS = {"float": "a number", "int": "an integer", "str": "a string",
           "bool": "true or false", "names": "a list of strings", "path": "a path to a file",
-          "numbers": "a list of numbers"}
+          "numbers": "a list of numbers", "point": "a list of 2 or 3 numbers"}
 _TYPES = {"float": (int, float), "int": (int, float), "str": str, "bool": bool, "names": list,
-          "path": str, "numbers": list}
+          "path": str, "numbers": list, "point": list}
 
 
 @dataclass(frozen=True)
@@ -145,6 +149,11 @@ def _convert(key: str, value: Any, spec: _Spec, base: Path) -> Any:
                    and spec.admits(x) for x in value):
             raise bad
         value = tuple(sorted(float(x) for x in value))
+    if kind == "point":
+        if len(value) not in (2, 3) or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value):
+            raise bad
+        value = tuple(float(x) for x in value)
     if spec.choices and value not in spec.choices:
         raise bad
     if kind == "path":
@@ -186,7 +195,10 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
 # ---------------------------------------------------------------- sections
 _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several fields
 _IMPORTED = ("kind", "file")
-_TRIANGLE = ("signal", "triangular")
+_SHAPED = ("signal", "triangular", "friedlander", "deflagration", "detonation")
+_RISING = ("signal", "triangular", "deflagration")
+_OSCILLATING = ("signal", "deflagration", "detonation")
+_DETONATION = ("signal", "detonation")
 _RCCM = ("law", "rccm")
 _STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
 _FRICTIONAL = ("law", "rccm", "rccm_decoupled", "threshold", "linear_softening")
@@ -269,20 +281,52 @@ class Interface:
 
 @dataclass(frozen=True)
 class Load:
-    """[load]: pressure p(t) on one boundary, positive pushes into the body.
+    """[load]: pressure p(t) on one boundary, positive pushes into the body (the formulas:
+    dolfrag/loads.py, docs/loads.md).
 
     triangular: linear 0 -> peak over [0, rise], then linear back to 0 at `duration`.
+    friedlander: peak (1 - t/duration) exp(-alpha t/duration), positive phase only.
+    deflagration: mean pressure rising as t^3 to `peak` at `rise`, half-cosine decay to 0
+    at `duration`, times (1 + amplitude sin(2 pi frequency t)).
+    detonation: spike `peak` at t = 0 decaying (e-folding time `decay`) to `plateau`, with
+    reverberations (frequency, amplitude relative to plateau, damping time) and an optional
+    local peak, all times (1 - t/duration).
     table: p(t) from a CSV file (columns t [s], p [Pa]), parsed into `t` and `p`.
+    Spatial profile: uniform, or region_factor x p(t) on the facets whose midpoint is in the
+    box [region_min, region_max] (give all three keys or none).
     """
     boundary: str = _f("str")                                        # a geometry boundary
-    signal: str = _f("str", "triangular", choices=SIGNALS)           # "triangular" | "table"
-    peak: float | None = _f("float", bounds=">= 0", unit="Pa", when=_TRIANGLE)     # >= 0
-    rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_TRIANGLE)  # >= 0
-    duration: float | None = _f("float", bounds="> 0", unit="s", when=_TRIANGLE)   # >= rise
+    signal: str = _f("str", "triangular", choices=SIGNALS)           # one of SIGNALS
+    peak: float | None = _f("float", bounds=">= 0", unit="Pa", when=_SHAPED)      # >= 0
+    rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING)   # >= 0
+    duration: float | None = _f("float", bounds="> 0", unit="s", when=_SHAPED)    # >= rise
+    # friedlander decay coefficient; >= -1 keeps the maximum at t = 0 (loads.friedlander_alpha
+    # gives it from the impulse ratio i / (peak duration), PHYSICS.md §6)
+    alpha: float | None = _f("float", bounds=">= -1", when=("signal", "friedlander"))
+    # oscillations; amplitude relative to the mean pressure (deflagration) or to the plateau
+    # (detonation), <= 1 keeps p >= 0
+    frequency: float | None = _f("float", bounds="> 0", unit="Hz", when=_OSCILLATING)
+    amplitude: float | None = _f("float", bounds=">= 0, <= 1", when=_OSCILLATING)
+    plateau: float | None = _f("float", bounds=">= 0", unit="Pa", when=_DETONATION)  # <= peak
+    decay: float | None = _f("float", bounds="> 0", unit="s", when=_DETONATION)     # spike e-folding
+    damping: float | None = _f("float", bounds="> 0", unit="s", when=_DETONATION)   # oscillation e-folding
+    # detonation's local peak: extra height (0: none), centre time and full width, in [0, duration]
+    local_peak: float | None = _f("float", 0.0, bounds=">= 0", unit="Pa", when=_DETONATION)
+    local_time: float | None = _f("float", None, bounds=">= 0", unit="s", when=_DETONATION)
+    local_width: float | None = _f("float", None, bounds="> 0", unit="s", when=_DETONATION)
     file: Path | None = _f("path", when=("signal", "table"))         # absolute Path of the CSV
+    region_min: tuple[float, ...] | None = _f("point", None, unit="m")   # lower corner of the box
+    region_max: tuple[float, ...] | None = _f("point", None, unit="m")   # upper corner
+    region_factor: float | None = _f("float", None, bounds=">= 0")       # p inside / p outside
     # parsed from `file` (table only; left out of ==, which compares `file`):
     t: np.ndarray | None = field(default=None, compare=False)  # [s] increasing, read-only f8
     p: np.ndarray | None = field(default=None, compare=False)  # [Pa], read-only float64
+
+    @property
+    def region(self) -> tuple | None:
+        """(region_min, region_max, region_factor) for loads.unit_pressure_vector, or None."""
+        return None if self.region_factor is None else \
+            (self.region_min, self.region_max, self.region_factor)
 
 
 @dataclass(frozen=True)
@@ -290,6 +334,24 @@ class Supports:
     """[supports]: boundary names; a boundary may be in one list only."""
     rollers: tuple[str, ...] = _f("names", ())   # zero normal displacement
     clamped: tuple[str, ...] = _f("names", ())   # zero displacement (never the load boundary)
+    # simply supported: zero displacement along the last axis (y in 2D, z in 3D: a wall's
+    # thickness), free rotation and sliding
+    simple: tuple[str, ...] = _f("names", ())
+
+
+@dataclass(frozen=True)
+class Rebar:
+    """[rebar]: steel bars in tension only (rebar.py), as layers parallel to faces of a
+    rectangle or box. No faces: no bars. In 2D a layer is one bar standing for bars
+    ``spacing`` apart across the depth (area pi d^2 / 4 / spacing per metre)."""
+    faces: tuple[str, ...] = _f("names", ())      # a layer near each of these faces
+    cover: float | None = _f("float", None, bounds="> 0", unit="m")       # face to bar axis
+    diameter: float | None = _f("float", None, bounds="> 0", unit="m")
+    spacing: float | None = _f("float", None, bounds="> 0", unit="m")     # between bars of a layer
+    direction: str = _f("str", "x", choices=("x", "y", "z", "xy", "xz", "yz"))  # bar axes (3D)
+    E: float = _f("float", 2.0e11, bounds="> 0", unit="Pa")
+    f_y: float | None = _f("float", None, bounds="> 0", unit="Pa")        # none: elastic
+    rho: float = _f("float", 7850.0, bounds="> 0", unit="kg/m^3")
 
 
 @dataclass(frozen=True)
@@ -325,6 +387,7 @@ class Case:
     interface: Interface
     load: Load
     supports: Supports
+    rebar: Rebar
     time: Time
     output: Output
     source: Path | None = None       # the case file this came from
@@ -335,7 +398,7 @@ class Case:
 
 
 _SECTIONS = {"geometry": Geometry, "mesh": Mesh, "material": Material, "interface": Interface,
-             "load": Load, "supports": Supports, "time": Time, "output": Output}
+             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output}
 _TOP_KEYS = ("name", "description", *_SECTIONS, "materials")
 _PATH_KEYS = {f"{s}.{f.name}" for s, cls in _SECTIONS.items() for f in fields(cls)
               if "spec" in f.metadata and f.metadata["spec"].kind == "path"}
@@ -409,20 +472,80 @@ def _check(case: Case) -> None:
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")
+    _check_load(load, case.geometry)
     named = {"load.boundary": load.boundary, "supports.rollers": list(sup.rollers),
-             "supports.clamped": list(sup.clamped)}
+             "supports.clamped": list(sup.clamped), "supports.simple": list(sup.simple),
+             "rebar.faces": list(case.rebar.faces)}
     for key, value in named.items():
         for name in [value] if isinstance(value, str) else value:
             if known is not None and name not in known:
                 raise CaseError(f"{key} = {_show(value)}: unknown boundary {name!r}; "
                                 f"allowed: {', '.join(known)}")
-    for name in sup.clamped:
-        why = ("is also in supports.rollers (a boundary may be in one list only)"
-               if name in sup.rollers else
-               "is the load.boundary (the loaded boundary may not be clamped)"
-               if name == load.boundary else "")
-        if why:
-            raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {name!r} {why}")
+    kinds = {"rollers": sup.rollers, "clamped": sup.clamped, "simple": sup.simple}
+    for kind, names in kinds.items():
+        for other, others in kinds.items():
+            both = sorted(set(names) & set(others))
+            if kind < other and both:
+                raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
+                                f"supports.{other} (a boundary may be in one list only)")
+    bars = case.rebar
+    if bars.faces:
+        if case.geometry.kind == "file":
+            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle or box geometry")
+        for key in ("cover", "diameter", "spacing"):
+            if getattr(bars, key) is None:
+                raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
+        thinnest = min(x for x in (case.geometry.length, case.geometry.width, case.geometry.thickness) if x)
+        if not bars.cover < thinnest / 2:
+            raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
+                            "smallest extent), or the layers cross")
+    if load.boundary in sup.clamped:
+        raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
+                        "load.boundary (the loaded boundary may not be clamped)")
+
+
+def _check_load(load: Load, geometry: Geometry) -> None:
+    """Rules linking the keys of [load] (and the region to the geometry's dimension)."""
+    if load.signal == "deflagration":
+        if load.rise <= 0:
+            raise CaseError(f"load.rise = {load.rise!r}: must be > 0 for a deflagration (s)")
+        if load.duration <= load.rise:
+            raise CaseError(f"load.duration = {load.duration!r}: must be > load.rise = "
+                            f"{load.rise!r} for a deflagration (s)")
+    if load.signal == "detonation":
+        if load.plateau > load.peak:
+            raise CaseError(f"load.plateau = {load.plateau!r}: must be <= load.peak = "
+                            f"{load.peak!r} (Pa; the spike decays to the plateau)")
+        local = {"local_time": load.local_time, "local_width": load.local_width}
+        if load.local_peak == 0:
+            for name, value in local.items():
+                if value is not None:
+                    raise CaseError(f"load.{name} = {value!r}: only allowed when load.local_peak > 0")
+        else:
+            for name, value in local.items():
+                if value is None:
+                    raise CaseError(f"missing key load.{name} (required when load.local_peak > 0): "
+                                    "must be a number (s)")
+            start, stop = load.local_time - load.local_width / 2, load.local_time + load.local_width / 2
+            if start < 0 or stop > load.duration:
+                raise CaseError(f"load.local_time = {load.local_time!r}, load.local_width = "
+                                f"{load.local_width!r}: the local peak [{start:.3g}, {stop:.3g}] s "
+                                f"must lie inside [0, load.duration = {load.duration!r}] s")
+    corners = {"region_min": load.region_min, "region_max": load.region_max}
+    keys = {**corners, "region_factor": load.region_factor}
+    given = [name for name, value in keys.items() if value is not None]
+    if given and len(given) < len(keys):
+        missing = ", ".join(f"load.{name}" for name in keys if name not in given)
+        raise CaseError(f"load.{given[0]} = {_show(keys[given[0]])}: the region needs "
+                        f"load.region_min, load.region_max and load.region_factor; missing {missing}")
+    if given:
+        for name, corner in corners.items():
+            if geometry.tdim is not None and len(corner) != geometry.tdim:
+                raise CaseError(f"load.{name} = {_show(list(corner))}: must have {geometry.tdim} "
+                                f"coordinates (m), one per axis of the {geometry.tdim}D geometry")
+        if not all(lo < hi for lo, hi in zip(load.region_min, load.region_max)):
+            raise CaseError(f"load.region_max = {_show(list(load.region_max))}: every coordinate must "
+                            f"be > load.region_min = {_show(list(load.region_min))} (m)")
 
 
 def _build(raw: dict, source: Path) -> Case:

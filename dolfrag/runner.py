@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, bulk, compat, loads, mesh, space as spaces, supports
+from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, space as spaces, supports
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
-from dolfrag.post import shpb
+from dolfrag.post import shpb, wall
 from dolfrag.post.figures import broken_mesh_png, exploded, signal_png
 from dolfrag.post.fragments import breaks_by_time, fragments
 from dolfrag.post.output import RunOutput, dof_damage
@@ -24,10 +24,10 @@ from dolfrag.solver.imex import ElasticSprings, Imex
 from dolfrag.solver.semismooth import ConvergenceError, StarNewton, step_stiffness
 from dolfrag.solver.theta import Theta, accuracy_time_step
 
-ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "D_damage_J", "D_contact_J",
-                  "D_numerical_J", "W_external_J", "balance_error_J"]
-ENERGY_FIELDS = ["kinetic", "bulk", "interface", "damage", "contact", "numerical", "external_work",
-                 "balance_error"]
+ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
+                  "D_numerical_J", "D_rebar_plastic_J", "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic",
+                 "external_work", "balance_error"]
 # velocity_x.png: each fragment moved off the body's centre by this share of its centroid
 # offset, so that cracks a few micrometres wide show (the seed's Fig. 6)
 EXPLODE = 0.1
@@ -61,13 +61,22 @@ def setup(case, comm):
     """Mesh, space, operators and the integrator for ``case``. Collective."""
     domain = mesh.build(case.geometry, case.mesh.size, comm)
     named = [("load.boundary", case.load.boundary)] + [
-        (f"supports.{kind}", name) for kind in ("rollers", "clamped") for name in getattr(case.supports, kind)]
+        (f"supports.{kind}", name) for kind in ("rollers", "clamped", "simple")
+        for name in getattr(case.supports, kind)]
     for key, name in named:
         if name not in domain.boundaries:
             raise CaseError(f"{key} = {name!r}: not a boundary of the mesh; boundaries: "
                             f"{', '.join(sorted(domain.boundaries)) or 'none'}")
     space = spaces.create(domain)
     bulk_ops = bulk.assemble(space, domain, case)
+    bars = None
+    if case.rebar.faces:
+        lines, areas = rebar.layer_polylines(case.rebar, case.geometry, space.gdim)
+        bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm)
+        bars.add_mass(bulk_ops.m.x.array)
+        # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
+        # mass, stays an upper bound
+        bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + bars.stiffness_bound(bulk_ops.m.x.array))
     links = link_table.build(space)
     stars = Stars(space, links, supports.constrained_components(space, domain, case.supports))
     time = case.time
@@ -78,14 +87,14 @@ def setup(case, comm):
     n_steps = math.ceil(time.end / h)
     h = time.end / n_steps
     jump = Jump(space, links)
-    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
+    load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
     if time.scheme == "theta":
         model = interface_model(case.interface, case.material.E, case.mesh.size, len(links), h)
         integrator = Theta(space, bulk_ops, jump, model, load, loads.signal(case.load), h, time.theta,
-                           stars.constrained)
+                           stars.constrained, rebars=bars)
     else:
         step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
-        integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h)
+        integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h, rebars=bars)
     return domain, space, links, integrator, n_steps, bulk_ops.dt_crit
 
 
@@ -119,6 +128,35 @@ def _free_end(case):
     return case.geometry.length if case.load.boundary == "left" else 0.0
 
 
+def _wall_section(case):
+    """(span L, thickness H, free face y) (m) of a rectangle loaded on its bottom or top
+    face, a wall section spanning x, else None: it then gets the ``wall`` block."""
+    if case.geometry.kind != "rectangle" or case.load.boundary not in ("bottom", "top"):
+        return None
+    H = case.geometry.width
+    return case.geometry.length, H, H if case.load.boundary == "bottom" else 0.0
+
+
+def _wall_estimates(case, C_N):
+    """post.wall.estimates for a wall case: the 1D wave speed is the plane-strain P-wave
+    modulus in series with the interface springs, one per mesh size (analytic.py; the
+    unstructured mesh is measured a few per cent softer still, docs/validation.md)."""
+    mat = case.material
+    M = analytic.series_interface_modulus(analytic.p_wave_modulus(mat.E, mat.nu, mat.hypothesis), C_N,
+                                          case.mesh.size)
+    sup = case.supports
+    kind = "clamped" if sup.clamped else "simple" if sup.simple else None
+    return wall.estimates(loads.signal(case.load), case.time.end, analytic.wave_speed(M, mat.rho), mat.rho, mat.E,
+                          shpb.tensile_strength(case.interface, C_N), case.geometry.width, case.geometry.length,
+                          kind, mat.nu if mat.hypothesis == "plane_strain" else 0.0)
+
+
+def _midspan(space, span, size):
+    """Owned flat y components of the dofs within half a mesh size of x = span / 2."""
+    dofs = np.flatnonzero(np.abs(space.x[:space.n_owned_dofs, 0] - span / 2) < size / 2)
+    return space.gdim * dofs + 1
+
+
 def run(case, out, quiet=False, comm=None):
     """Run ``case`` (a config.Case, a case file path or a built-in name); write
     summary.json, history.csv, fields.pvd and figures/ into ``out``. Collective.
@@ -129,8 +167,12 @@ def run(case, out, quiet=False, comm=None):
     wall_start = time.perf_counter()
     domain, space, links, integ, n_steps, dt_crit = setup(case, comm)
     probes = _probes(space, domain)
+    section = _wall_section(case)
+    midspan = _midspan(space, section[0], case.mesh.size) if section else None
+    deflection = ([], [])  # s, m: the midspan deflection (mean y displacement across the section)
     columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
-               "newton_unconverged", "newton_residual", *probes]
+               "newton_unconverged", "newton_residual", *probes, *(["w_midspan_m"] if section else []),
+               *(["rebar_force_max_N"] if integ.rebars else [])]
     snapshots = set(np.round(np.linspace(0, n_steps, case.output.fields + 1)).astype(int)) \
         if case.output.fields else set()
     output = RunOutput(out, comm, columns, fields=bool(snapshots))
@@ -173,13 +215,19 @@ def run(case, out, quiet=False, comm=None):
                 output.failure(lambda vtk: write_fields(integ.t, vtk))  # the state, for a look
                 raise
             if energies is not None:
-                probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]))
+                probe_sums = comm.allreduce(np.array([[integ.v.x.array[c].sum(), len(c)] for c in probes.values()]
+                                                     + ([[integ.u.x.array[midspan].sum(), len(midspan)]]
+                                                        if section else [])))
                 newton = [comm.allreduce(integ.interface.iterations, op=MPI.MAX),
                           comm.allreduce(integ.interface.unconverged, op=MPI.SUM),
                           comm.allreduce(integ.interface.residual, op=MPI.MAX)]
                 output.row([k, integ.energy_time, integ.pressure(t_n),
                             *(getattr(energies, a) for a in ENERGY_FIELDS), energies.broken_links, *newton,
-                            *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1))])
+                            *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1)),
+                            *([comm.allreduce(integ.rebars.force_max, op=MPI.MAX)] if integ.rebars else [])])
+                if section:
+                    deflection[0].append(integ.t)
+                    deflection[1].append(probe_sums[-1, 0] / max(probe_sums[-1, 1], 1))
                 max_error = max(max_error, abs(energies.balance_error))
                 max_work = max(max_work, abs(energies.external_work))
             if k in snapshots:
@@ -207,10 +255,29 @@ def run(case, out, quiet=False, comm=None):
         output.close()
     frags, fragment_of_cell = current_fragments(of_cells=True)
     axes = "xyz"[:space.gdim]
-    output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
-                 np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
-                                  integ.model.damage(), integ.model.broken(), break_time]))
+    table = output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
+                         np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
+                                          integ.model.damage(), integ.model.broken(), break_time]))
     summary["fragments"] = frags.to_dict()
+    if integ.rebars is not None:
+        bars = integ.rebars
+        summary["rebar"] = {"segments": bars.count,
+                            "peak_force_N": comm.allreduce(bars.peak_force, op=MPI.MAX),
+                            "plastic_work_J": comm.allreduce(bars.plastic_work),
+                            "units": "N and J per metre of depth in 2D"}
+    if section:
+        span, thickness, free_face = section
+        # in the reference configuration: a bounding box then says where a piece came from
+        reference = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, None, break_time)
+        peak_force = [comm.allreduce(integ.rebars.peak_force, op=MPI.MAX)] if integ.rebars else None
+        block = None
+        if comm.rank == 0:
+            d = space.gdim
+            block = wall.wall_block(reference, table[:, :d], table[:, 2 * d], table[:, 2 * d + 1],
+                                    table[:, 2 * d + 3], *deflection, peak_force, time.perf_counter() - wall_start,
+                                    span=span, thickness=thickness, free_face=free_face, h=case.mesh.size)
+        summary["wall"] = comm.bcast(block, root=0)
+        summary["wall"]["estimates"] = _wall_estimates(case, integ.model.C_N)
     if free_end is not None:
         summary["breaks"] = breaks_by_time(frags, free_end)
         measured_at, at_measure = measured.get(shpb.MEASURE_TIME, (integ.t, frags))  # shorter run: the end

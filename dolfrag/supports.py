@@ -1,7 +1,9 @@
 """Supports: boundaries whose displacement components stay zero.
 
 A roller fixes the normal component, so its boundary must be a plane normal to an
-axis (every builder boundary is); a clamped boundary fixes every component.
+axis (every builder boundary is); a clamped boundary fixes every component; a simple
+support fixes the component along the last axis (y in 2D, z in 3D: the thickness of a
+wall or slab), so the section turns and slides freely about it.
 """
 import numpy as np
 from mpi4py import MPI
@@ -25,4 +27,6 @@ def constrained_components(space, domain, supports):
             raise CaseError(f"supports.rollers: boundary {name!r} is not a plane normal to an axis; "
                             "rollers need one (use clamped, or split the boundary)")
         fixed.append(space.gdim * space.boundary_dofs(domain.facet_tags, tag) + axes[0])
+    for name in supports.simple:
+        fixed.append(space.gdim * space.boundary_dofs(domain.facet_tags, domain.boundary_tag(name)) + space.gdim - 1)
     return np.unique(np.concatenate(fixed)) if fixed else np.empty(0, dtype=np.int64)

@@ -1,4 +1,6 @@
 """Closed forms of analytic.py against each other and against PHYSICS.md's numbers."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -34,3 +36,120 @@ def test_a_rise_time_moves_the_spall_by_the_unloading_rate_only():
 
 def test_no_spall_below_the_strength():
     assert analytic.spall_distance(loads.triangular(4e6, 0.0, 25e-6), 3700.0, 5e6, 25e-6) is None
+
+
+# SDOF of a one-way wall strip (PHYSICS.md §7), per metre of width
+WALL = analytic.strip_properties(E=35e9, rho=2350, thickness=0.1, span=1.0, supports="clamped")
+
+
+def constant(p):
+    """p(t) = p (Pa) for t >= 0: a step load applied at t = 0."""
+    return lambda t: np.full_like(t, p)
+
+
+def test_strip_properties_reproduce_the_physics_md_wall():
+    # PHYSICS.md §7 prints 3 digits: M = 235 kg/m^2, EI_g = 2.92 MN m^2/m, k = 1.12e9, f = 396 Hz
+    assert WALL.M == pytest.approx(235, abs=0.5)
+    assert WALL.EI == pytest.approx(2.92e6, abs=0.005e6)
+    assert WALL.k == pytest.approx(1.12e9, abs=0.005e9)
+    assert WALL.f == pytest.approx(396, abs=0.5)
+
+
+@pytest.mark.parametrize("supports, beta_L", [("clamped", 4.7300), ("simple", np.pi)])
+def test_sdof_frequency_is_the_euler_bernoulli_first_mode(supports, beta_L):
+    # f_1 = (beta L)^2 / (2 pi L^2) sqrt(EI / (rho h)). The static shape's Rayleigh quotient
+    # is <= 0.4 % high, and Biggs's 2-digit K_LM moves f by up to 0.7 %: within 1 %
+    strip = analytic.strip_properties(35e9, 2350, 0.1, 1.0, supports)
+    f_1 = beta_L**2 / (2 * np.pi) * np.sqrt(strip.EI / (2350 * 0.1))
+    assert strip.f == pytest.approx(f_1, rel=1e-2)
+
+
+def test_unknown_supports_are_rejected_by_name():
+    with pytest.raises(ValueError, match="supports.*clamped.*simple"):
+        analytic.strip_properties(35e9, 2350, 0.1, 1.0, "pinned")
+
+
+def test_step_load_peak_is_2F0_over_k_at_half_period():
+    F_0 = 1e5 * WALL.span
+    y_max, t_max = analytic.sdof_peak_deflection(WALL, constant(1e5), WALL.T)
+    # dt = T / 200: the sampled peak misses the true one by <= dt / 2, i.e. by
+    # 1 - cos(pi / 200) = 1.2e-4 of the amplitude F_0 / k, 6e-5 of the peak
+    assert y_max == pytest.approx(analytic.step_load_peak_deflection(F_0, WALL.k), rel=1e-4)
+    assert t_max == pytest.approx(WALL.T / 2, abs=WALL.T / 200)
+
+
+def test_short_pulse_peak_is_impulse_over_K_LM_M_omega():
+    t_d, p_0 = WALL.T / 100, 1e5
+    impulse = p_0 * t_d / 2 * WALL.span
+    y_max, _ = analytic.sdof_peak_deflection(WALL, loads.triangular(p_0, t_d / 2, t_d), WALL.T / 2,
+                                             dt=t_d / 100)
+    # finite duration: 1 - (omega t_d)^2 / 48 = 1 - 8e-5 for a symmetric triangle; trapezoidal
+    # sampling of the kinks off the grid: <= (dt / t_d)^2 = 1e-4 of the impulse
+    expected = analytic.impulsive_elastic_deflection(impulse, WALL.K_LM, WALL.M, WALL.k)
+    assert y_max == pytest.approx(expected, rel=5e-4)
+
+
+def test_slow_ramp_is_followed_quasi_statically():
+    # exact ramp response: y - F / k = -(F_0 / k) sin(omega t) / (omega t_r), so the lag is
+    # bounded by F_0 / (k omega t_r) (0.8 % of F_0 / k here) and reached; the scheme's
+    # amplitude error, (omega dt)^2 / 12 ~ 1e-4, is within the 1e-3 margins
+    p_0, t_r = 1e5, 20 * WALL.T
+    F_over_k = lambda t: p_0 * WALL.span * np.clip(t / t_r, 0, 1) / WALL.k  # noqa: E731
+    t, y = analytic.sdof_response(WALL, lambda t: p_0 * np.clip(t / t_r, 0, 1), t_r)
+    bound = p_0 * WALL.span / (WALL.k * WALL.omega * t_r)
+    lag = np.max(np.abs(y - F_over_k(t)))
+    assert bound * (1 - 1e-3) <= lag <= bound * (1 + 1e-3)
+
+
+def test_elastoplastic_step_peak_is_Rm_ye_over_2_Rm_minus_F0():
+    # one K_LM for the whole history: the energy balance behind the closed form holds only
+    # if the mass factor does not switch
+    R_m = WALL.k * 1e-3
+    F_0 = 0.8 * R_m
+    y_max, _ = analytic.sdof_peak_deflection(WALL, constant(F_0 / WALL.span), 2 * WALL.T,
+                                             resistance=R_m, K_LM=WALL.K_LM)
+    # dt = T / 1000: the trapezoidal work of R over the step that crosses the kink errs by
+    # ~ k (v dt)^2 / 8, 1e-5 of the strain energy; 1e-4 leaves room for the peak sampling
+    assert y_max == pytest.approx(analytic.step_load_peak_deflection(F_0, WALL.k, R_m), rel=1e-4)
+    assert y_max == pytest.approx(2.5 * R_m / WALL.k, rel=1e-4)
+
+
+def test_rigid_plastic_impulsive_peak_is_I2_over_2_KLM_M_Rm():
+    # k -> infinity: 1e6 x the wall's stiffness, R_m / k = 2e-10 m of elastic deflection, and
+    # the elastic phase lasts far less than a step: the default factor switch is exercised
+    rigid = dataclasses.replace(WALL, k=1e6 * WALL.k)
+    R_m, F_0 = 2.7e5, 2.7e8
+    impulse = np.sqrt(2 * WALL.K_LM_plastic * WALL.M * R_m * 0.05)  # 5 cm expected
+    t_d = 2 * impulse / F_0
+    expected = analytic.rigid_plastic_impulsive_deflection(impulse, WALL.K_LM_plastic, WALL.M, R_m)
+    y_max, _ = analytic.sdof_peak_deflection(rigid, loads.triangular(F_0 / WALL.span, t_d / 2, t_d),
+                                             2 * np.sqrt(2 * expected * WALL.K_LM_plastic * WALL.M / R_m),
+                                             dt=t_d / 50, resistance=R_m)
+    # the pulse is not instantaneous: R_m removes up to R_m t_d of its momentum, so up to
+    # 2 R_m t_d / I = 4e-3 of y_max (2e-3 measured)
+    assert y_max == pytest.approx(expected, rel=2 * R_m * t_d / impulse)
+
+
+def test_mechanism_accelerates_with_the_plastic_load_mass_factor():
+    # PHYSICS.md §7: past R_m, v^2 = 2 (F - R_m) y / (K_LM M), i.e. y = (F - R_m) t^2 / (2 K_LM M)
+    # with K_LM = 0.66; the elastic 0.77 would be 14 % off
+    stiff = dataclasses.replace(WALL, k=1e4 * WALL.k)
+    R_m = 2.7e5
+    F_0, t_end = 1.5 * R_m, 0.01
+    t, y = analytic.sdof_response(stiff, constant(F_0 / WALL.span), t_end, dt=1e-6, resistance=R_m)
+    expected = (F_0 - R_m) * t_end**2 / (2 * WALL.K_LM_plastic * WALL.M)
+    # the elastic phase, t_y = acos(1 - R_m / F_0) / omega, starts the parabola late and fast:
+    # an O(t_y / t_end) error (1.9 t_y / t_end measured)
+    t_y = np.arccos(1 - R_m / F_0) / stiff.omega
+    assert y[-1] == pytest.approx(expected, rel=4 * t_y / t_end)
+
+
+def test_clamped_wall_resistance_matches_physics_md():
+    # PHYSICS.md §7: Ø10/150 each face, f_y = 500 MPa, d = 70 mm -> M_p ~ 17 kN m/m (2 digits);
+    # f_c = 40 MPa as in §5
+    A_s = np.pi * 0.010**2 / 4 / 0.150
+    M_p = analytic.rebar_plastic_moment(A_s, 500e6, 0.070, 40e6)
+    assert M_p == pytest.approx(17e3, abs=0.5e3)
+    # R_m = 8 (M_ps + M_pm) / L = 16 M_p ~ 2.7 bar on 1 m (from the rounded 17 kN m/m)
+    assert analytic.bending_resistance(17e3, 17e3, 1.0, "clamped") == pytest.approx(2.7e5, abs=0.05e5)
+    assert analytic.bending_resistance(17e3, 17e3, 1.0, "simple") == pytest.approx(1.36e5)

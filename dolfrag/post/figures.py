@@ -72,7 +72,8 @@ def exploded(frags, fragment_of_cell, spread):
 
 def signal_png(signal, t_end, path, comm, title=""):
     """The load's pressure p(t) (``signal``: Pa, a vectorised function of t in s) over
-    [0, t_end] s, drawn with matplotlib in µs and MPa. Collective; rank 0 draws."""
+    [0, t_end] s, drawn with matplotlib in MPa and µs (ms from t_end = 1 ms, s from 1 s).
+    Collective; rank 0 draws."""
     if comm.rank != 0:
         return
     try:
@@ -83,11 +84,12 @@ def signal_png(signal, t_end, path, comm, title=""):
         print(f"matplotlib is not installed: {path} not drawn (pip install matplotlib)", file=sys.stderr)
         return
     t = np.linspace(0.0, t_end, 2001)
+    scale, unit = (1e6, "µs") if t_end < 1e-3 else (1e3, "ms") if t_end < 1.0 else (1.0, "s")
     fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
-    ax.plot(1e6 * t, 1e-6 * signal(t))
-    ax.set_xlabel("time t (µs)")
+    ax.plot(scale * t, 1e-6 * signal(t))
+    ax.set_xlabel(f"time t ({unit})")
     ax.set_ylabel("pressure p (MPa), > 0 pushes in")
-    ax.set_xlim(0.0, 1e6 * t_end)
+    ax.set_xlim(0.0, scale * t_end)
     ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
     ax.set_title(title)
     ax.grid(alpha=0.3)

@@ -54,11 +54,14 @@ class RunOutput:
 
     def links(self, columns, rows):
         """links.csv: one row per link, gathered from every rank (rank 0 writes).
-        Collective; rows (n_owned_links, len(columns)) floats."""
+        Collective; rows (n_owned_links, len(columns)) floats. Returns the gathered rows
+        on rank 0, None elsewhere."""
         everyone = self.comm.gather(np.asarray(rows, dtype=float), root=0)
-        if self.comm.rank == 0:
-            np.savetxt(self.out / "links.csv", np.concatenate(everyone), delimiter=",",
-                       header=",".join(columns), comments="", fmt="%.9g")
+        if self.comm.rank != 0:
+            return None
+        table = np.concatenate(everyone)
+        np.savetxt(self.out / "links.csv", table, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
+        return table
 
     def failure(self, write):
         """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""

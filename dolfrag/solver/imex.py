@@ -41,11 +41,13 @@ class Energies:
     external_work: float
     broken_links: int
     numerical: float = 0.0  # dissipated by the time scheme itself (theta > 1/2; 0 for imex)
+    rebar: float = 0.0  # elastic energy of the bars
+    plastic: float = 0.0  # dissipated by the bars' yielding
 
     @property
     def balance_error(self):
         return (self.kinetic + self.bulk + self.interface + self.damage + self.contact + self.numerical
-                - self.external_work)
+                + self.rebar + self.plastic - self.external_work)
 
 
 class ElasticSprings:
@@ -73,11 +75,14 @@ class Imex:
 
     space, bulk, jump: from space.py, bulk.py, interface/jumps.py; step: the interface
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
-    nodal forces per pascal; pressure: p(t) in Pa; h: time step (s).
+    nodal forces per pascal; pressure: p(t) in Pa; h: time step (s); rebars: rebar.Rebars
+    or None. The bars are explicit, like the bulk: their forces need every ghost
+    displacement, so with bars each step ends with a forward scatter of u.
     """
 
-    def __init__(self, space, bulk, jump, step, load, pressure, h):
+    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
+        self.rebars = rebars
         self.model = step.model
         self.pressure, self.h = pressure, h
         V = space.V
@@ -126,6 +131,9 @@ class Imex:
         Ku = self.bulk.K_cells @ u[own]
         p = float(self.pressure(self.t))
         np.negative(Ku, out=f[own])
+        if self.rebars is not None:
+            self._u_n = u.copy()
+            f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
         compat.scatter_forward(self.f)
 
@@ -144,6 +152,8 @@ class Imex:
         ghosts = self.star_ghosts
         v[ghosts] += dv[ghosts]
         u[ghosts] += h * v[ghosts]
+        if self.rebars is not None:
+            compat.scatter_forward(self.u)
         self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
         g_old, self._g = self._g, self.jump(u)
         self.interface.account(self._g_before, self._g)
@@ -158,9 +168,12 @@ class Imex:
         own = self.owned
         v, u = self.v.x.array[own], self.u.x.array[own]
         weight = self.jump.links.weight
+        bars = self.rebars
         local = np.array([0.5 * self.m[own] @ v**2, 0.5 * u @ Ku,
                           weight @ self.model.stored_energy(*self.jump.local(g_mid)),
                           weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
-                          np.count_nonzero(self.model.broken())])
+                          np.count_nonzero(self.model.broken()),
+                          bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
+                          bars.plastic_work if bars else 0.0])
         total = self.space.mesh.comm.allreduce(local, op=MPI.SUM)
-        return Energies(*total[:6], int(total[6]))
+        return Energies(*total[:6], int(total[6]), rebar=total[7], plastic=total[8])

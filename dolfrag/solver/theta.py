@@ -52,7 +52,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfrag import compat
+from dolfrag import compat, loads
 from dolfrag.interface import laws, models
 from dolfrag.interface.contact import contact_friction_projection, link_blocks
 from dolfrag.solver import semismooth
@@ -97,15 +97,11 @@ class NewtonReport:
 
 
 def accuracy_time_step(load, end, per_feature=20):
-    """A step (s) resolving the load signal (config.Load): its shortest feature (rise, decay,
-    or table interval) over per_feature, at most end / per_feature. A priori only: it knows
-    nothing of the structure's periods or of crack events."""
-    if load.signal == "triangular":
-        features = [load.rise, load.duration - load.rise]
-    else:
-        features = list(np.diff(load.t))
-    shortest = min([f for f in features if f > 0] + [end])
-    return shortest / per_feature
+    """A step (s) resolving the load signal (config.Load): its shortest feature
+    (loads.shortest_feature: a rise, a decay, a table interval, an oscillation's half period)
+    over per_feature, at most end / per_feature. A priori only: it knows nothing of the
+    structure's periods or of crack events."""
+    return min(loads.shortest_feature(load), end) / per_feature
 
 
 class Theta:
@@ -122,12 +118,13 @@ class Theta:
     """
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(),
-                 max_iterations=30, rtol=1e-10, max_cuts=4):
+                 max_iterations=30, rtol=1e-10, max_cuts=4, rebars=None):
         if not 0.5 <= theta <= 1.0:
             raise ValueError(f"theta = {theta!r}: must be in [1/2, 1]")
         if not h > 0:
             raise ValueError(f"h = {h!r}: the time step must be > 0 (s)")
         self.space, self.bulk, self.jump, self.model = space, bulk, jump, model
+        self.rebars = rebars
         self.pressure, self.h, self.theta = pressure, h, theta
         self.max_cuts = max_cuts
         self.comm = space.mesh.comm
@@ -213,6 +210,9 @@ class Theta:
             blocks["gap"] = _stack([_outer(gr, gx[Y], frozen, fixed[Y]) for Y in (cB, cA)])
             blocks["reaction"] = _outer(gr, gr, frozen, frozen)
             blocks["frozen"] = (gr, gr, np.zeros(gr.shape, dtype=bool))
+        if self.rebars is not None:  # each segment once, from the rank counting it
+            comps = self.rebars.comps[self.rebars.counted]
+            blocks["rebar"] = _outer(gx[comps], gx[comps], fixed[comps], fixed[comps])
         self._blocks = list(blocks)
         rows = np.concatenate([b[0].ravel() for b in blocks.values()])
         cols = np.concatenate([b[1].ravel() for b in blocks.values()])
@@ -346,6 +346,9 @@ class Theta:
         t = np.column_stack([law.r_N, law.r_T]) - r  # Pa, tension positive
         f = self.force.x.array
         f[:] = self.jump.BT @ (self.w[:, None] * np.einsum("lai,la->li", self.frame, t)).ravel()
+        if self.rebars is not None:
+            f_bars, point.k_bars = self.rebars.forces(self.u.x.array + th * du, commit=False, counted_only=True)
+            f -= f_bars
         compat.scatter_reverse_add(self.force)
         inertia = self.m[own] * x
         load = h * step.p_theta * self.load_vector
@@ -393,12 +396,17 @@ class Theta:
             gap = m_l * np.matmul(Jg, R)
             values.update(impulse=np.stack([-RT, RT]), gap=np.stack([gap, -gap]), reaction=m_l * Jr,
                           frozen=np.where(self._frozen, self.m_link[:, None], 0.0))
+        if self.rebars is not None:  # L k b b^T of each counted segment, b its row of B
+            bars, counted = self.rebars, self.rebars.counted
+            b = bars.coef[counted]
+            k = th * th * h * h * (bars.L * point.k_bars)[counted]
+            values["rebar"] = k[:, None, None] * b[:, :, None] * b[:, None, :]
         return np.concatenate([values[k].ravel() for k in self._blocks]) * self._keep
 
     def _solve(self, step, point):
         """One Newton correction: refactor only when the Jacobian changed anywhere (the
         springs' alone depends on h only)."""
-        if self.contact or step.h != self._assembled_h:
+        if self.contact or self.rebars is not None or step.h != self._assembled_h:
             values = np.bincount(self._slot, weights=self._values(step, point), minlength=len(self._rows))
             changed = self._last_values is None or not np.array_equal(values, self._last_values)
             if self.comm.allreduce(changed, op=MPI.LOR):
@@ -451,6 +459,11 @@ class Theta:
         law = point.law
         D = link_blocks(law.dr_N_dg_N, law.dr_N_dg_T, law.dr_T_dg_N, law.dr_T_dg_T)
         spring_work = self.w @ np.einsum("li,lij,lj->l", dg, D, dg)
+        if self.rebars is not None:
+            bars = self.rebars
+            d_eps = bars.B @ du
+            spring_work += np.sum((bars.L * point.k_bars * d_eps**2)[bars.counted])
+            bars.forces(self.u.x.array + du, commit=True)
         self.numerical += (th - 0.5) * (x @ (self.m[own] * x) + du[own] @ (self.bulk.K_cells @ du[own]) + spring_work)
         self.work += step.p_theta * self.load_vector @ du[own]
         if self.contact:
@@ -482,14 +495,17 @@ class Theta:
 
     def _energies(self):
         own = self.owned
-        v, u = self.v.x.array[own], self.u.x.array[own]
+        u_all = self.u.x.array
+        v, u = self.v.x.array[own], u_all[own]
         g = self._g
         local = np.array([0.5 * self.m[own] @ v**2, 0.5 * u @ (self.bulk.K_cells @ u),
                           self.w @ self.model.stored_energy(g[:, 0], g[:, 1:]),
                           self.w @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
-                          np.count_nonzero(self.model.broken()), self.numerical])
+                          np.count_nonzero(self.model.broken()), self.numerical,
+                          self.rebars.stored_energy(u_all, u_all) if self.rebars else 0.0,
+                          self.rebars.plastic_work if self.rebars else 0.0])
         total = self.comm.allreduce(local, op=MPI.SUM)
-        return Energies(*total[:6], int(total[6]), total[7])
+        return Energies(*total[:6], int(total[6]), total[7], rebar=total[8], plastic=total[9])
 
 
 class _Step:
@@ -506,6 +522,7 @@ class _Point:
     def __init__(self, g_end, g_theta):
         self.g_end, self.g_theta = g_end, g_theta
         self.law = self.jac = self.F = None
+        self.k_bars = None  # the bars' tangents dN/deps (N), with rebars
         self.norm = self.error = 0.0
         self.converged = False
 
