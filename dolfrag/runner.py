@@ -16,7 +16,7 @@ from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.post import shpb, wall
-from dolfrag.post.figures import broken_mesh_png, exploded, signal_png
+from dolfrag.post.figures import broken_mesh_png, deflection_png, exploded, signal_png, wave_png
 from dolfrag.post.fragments import breaks_by_time, fragments
 from dolfrag.post.output import RunOutput, dof_damage
 from dolfrag.progress import Progress
@@ -138,7 +138,7 @@ def _wall_section(case):
 
 
 def _wall_estimates(case, C_N):
-    """post.wall.estimates for a wall case: the 1D wave speed is the plane-strain P-wave
+    """post.wall.estimates (block, SDOF history) for a wall case: the 1D wave speed is the plane-strain P-wave
     modulus in series with the interface springs, one per mesh size (analytic.py; the
     unstructured mesh is measured a few per cent softer still, docs/validation.md)."""
     mat = case.material
@@ -170,6 +170,7 @@ def run(case, out, quiet=False, comm=None):
     section = _wall_section(case)
     midspan = _midspan(space, section[0], case.mesh.size) if section else None
     deflection = ([], [])  # s, m: the midspan deflection (mean y displacement across the section)
+    wave = ([], [])  # this rank's midspan dofs: depth y (m) and velocity v_y (m/s) at each row
     columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
                "newton_unconverged", "newton_residual", *probes, *(["w_midspan_m"] if section else []),
                *(["rebar_force_max_N"] if integ.rebars else [])]
@@ -226,6 +227,8 @@ def run(case, out, quiet=False, comm=None):
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1)),
                             *([comm.allreduce(integ.rebars.force_max, op=MPI.MAX)] if integ.rebars else [])])
                 if section:
+                    wave[0].append(space.x[midspan // space.gdim, 1])
+                    wave[1].append(integ.v.x.array[midspan].copy())
                     deflection[0].append(integ.t)
                     deflection[1].append(probe_sums[-1, 0] / max(probe_sums[-1, 1], 1))
                 max_error = max(max_error, abs(energies.balance_error))
@@ -277,7 +280,7 @@ def run(case, out, quiet=False, comm=None):
                                     table[:, 2 * d + 3], *deflection, peak_force, time.perf_counter() - wall_start,
                                     span=span, thickness=thickness, free_face=free_face, h=case.mesh.size)
         summary["wall"] = comm.bcast(block, root=0)
-        summary["wall"]["estimates"] = _wall_estimates(case, integ.model.C_N)
+        summary["wall"]["estimates"], sdof_history = _wall_estimates(case, integ.model.C_N)
     if free_end is not None:
         summary["breaks"] = breaks_by_time(frags, free_end)
         measured_at, at_measure = measured.get(shpb.MEASURE_TIME, (integ.t, frags))  # shorter run: the end
@@ -298,4 +301,17 @@ def run(case, out, quiet=False, comm=None):
         broken_mesh_png(space, integ.u, damage.x.array, figures / "damage.png", "damage 1 - beta (-)")
         signal_png(loads.signal(case.load), case.time.end, figures / "load.png", comm,
                    f"load on '{case.load.boundary}' ({case.name})")
+        if section:
+            broken_mesh_png(space, integ.u, v[:, 1], figures / "velocity_y.png", "velocity v_y (m/s)", scale=1.0,
+                            cell_offset=exploded(frags, fragment_of_cell, EXPLODE),
+                            note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
+                                 f"t = {integ.t * 1e3:.3g} ms")
+            deflection_png(deflection[0], deflection[1], sdof_history, figures / "deflection.png", comm,
+                           f"midspan deflection ({case.name})", summary["wall"]["first_through_crack_s"])
+            rows = comm.gather(wave, root=0)
+            if rows is not None:
+                y = [np.concatenate(parts) for parts in zip(*(r[0] for r in rows))]
+                v_y = [np.concatenate(parts) for parts in zip(*(r[1] for r in rows))]
+                wave_png(deflection[0], y, v_y, section[1], figures / "wave.png", comm,
+                         f"v_y through the thickness at midspan ({case.name})")
     return summary

@@ -134,3 +134,18 @@ def test_cracked_plain_section_separates_while_bars_hold_it(tmp_path):
     # never exceeds the run's peak, and comes within 10 % of it
     sampled = h_held["rebar_force_max_N"].max()
     assert 0.9 * held["rebar"]["peak_force_N"] <= sampled <= held["rebar"]["peak_force_N"]
+
+
+def test_crossing_layers_in_a_box_read_the_in_plane_stretch(comm):
+    """3D: two crossing layers (x and y bars) near the z = 0 face of a small slab."""
+    geometry = SimpleNamespace(kind="box", tdim=3, length=0.2, width=0.2, thickness=0.05)
+    space = spaces.create(mesh.build(geometry, 0.02, comm))
+    layers = SimpleNamespace(faces=("front",), cover=0.015, diameter=0.008, spacing=0.05, direction="xy")
+    lines, areas = rebar.layer_polylines(layers, geometry, 3)
+    assert len(lines) == 8  # 4 bars each way, 50 mm apart across 0.2 m
+    assert {line[0, 2] for line in lines} == {0.015, 0.023}  # y bars one diameter further in
+    bars = rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm)
+    u = np.zeros(space.x.size)
+    u[0::3], u[1::3] = 1e-3 * space.x[:, 0], 1e-3 * space.x[:, 1]
+    assert comm.allreduce(int(bars.counted.sum())) > 0
+    assert bars.B @ u == pytest.approx(np.full(bars.B.shape[0], 1e-3), rel=1e-9)  # P1: exact

@@ -74,17 +74,11 @@ def signal_png(signal, t_end, path, comm, title=""):
     """The load's pressure p(t) (``signal``: Pa, a vectorised function of t in s) over
     [0, t_end] s, drawn with matplotlib in MPa and µs (ms from t_end = 1 ms, s from 1 s).
     Collective; rank 0 draws."""
-    if comm.rank != 0:
-        return
-    try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        print(f"matplotlib is not installed: {path} not drawn (pip install matplotlib)", file=sys.stderr)
+    plt = _pyplot(comm, path)
+    if plt is None:
         return
     t = np.linspace(0.0, t_end, 2001)
-    scale, unit = (1e6, "µs") if t_end < 1e-3 else (1e3, "ms") if t_end < 1.0 else (1.0, "s")
+    scale, unit = _time_unit(t_end)
     fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
     ax.plot(scale * t, 1e-6 * signal(t))
     ax.set_xlabel(f"time t ({unit})")
@@ -93,5 +87,71 @@ def signal_png(signal, t_end, path, comm, title=""):
     ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
     ax.set_title(title)
     ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _pyplot(comm, path):
+    """matplotlib.pyplot (Agg) on rank 0; None elsewhere or without matplotlib."""
+    if comm.rank != 0:
+        return None
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print(f"matplotlib is not installed: {path} not drawn (pip install matplotlib)", file=sys.stderr)
+        return None
+    return plt
+
+
+def _time_unit(t_end):
+    """(scale, name) of the time axis: µs below 1 ms, ms below 1 s, else s."""
+    return (1e6, "µs") if t_end < 1e-3 else (1e3, "ms") if t_end < 1.0 else (1.0, "s")
+
+
+def deflection_png(t, w, sdof, path, comm, title="", cracked_at=None):
+    """Midspan deflection w(t) (m) of a wall run against the elastic SDOF estimate
+    ``sdof`` = (t, y) (s, m) or None, with the first through-crack's time (s) marked.
+    Collective; rank 0 draws."""
+    plt = _pyplot(comm, path)
+    if plt is None:
+        return
+    scale, unit = _time_unit(max(t[-1], 1e-12))
+    fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
+    ax.plot(scale * np.asarray(t), 1e3 * np.asarray(w), label="dolfrag (mean across the section)")
+    if sdof is not None:
+        ax.plot(scale * sdof[0], 1e3 * sdof[1], "--", label="elastic SDOF (Biggs)")
+    if cracked_at is not None:
+        ax.axvline(scale * cracked_at, color="k", lw=0.8, ls=":", label="first through-crack")
+    ax.set_xlabel(f"time t ({unit})")
+    ax.set_ylabel("midspan deflection (mm)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def wave_png(t, y, v, thickness, path, comm, title="", depths=100):
+    """The wave through a wall's thickness (the seed's Fig. 7): velocity v (m/s) across the
+    thickness over time at midspan, as a time-depth map. t (k,) s; y, v: per time, the
+    depths (m) and velocities of the midspan dofs, interpolated linearly in depth.
+    Collective; rank 0 draws."""
+    plt = _pyplot(comm, path)
+    if plt is None:
+        return
+    grid = np.linspace(0.0, thickness, depths)
+    order = [np.argsort(yk, kind="stable") for yk in y]
+    image = np.array([np.interp(grid, yk[o], vk[o]) for yk, vk, o in zip(y, v, order)])
+    scale, unit = _time_unit(max(t[-1], 1e-12))
+    fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
+    limit = np.abs(image).max(initial=0.0) or 1.0
+    mesh = ax.pcolormesh(scale * np.asarray(t), 1e3 * grid, image.T, cmap="RdBu_r",
+                         vmin=-limit, vmax=limit, shading="nearest")
+    fig.colorbar(mesh, ax=ax, label="velocity across the wall (m/s)")
+    ax.set_xlabel(f"time t ({unit})")
+    ax.set_ylabel("depth y (mm)")
+    ax.set_title(title)
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -286,17 +286,19 @@ def estimates(pressure, end, c, rho, E, sigma_c, thickness, span, supports, nu):
     Scab: the 1D spall plane of the pulse reflected at the free face and the momentum it
     traps (None if the tension never reaches sigma_c within H); ejection: the velocity
     jump sigma_c / sqrt(rho E) a crack sends out; SDOF: the elastic Biggs peak deflection.
+    Returns the dict and the SDOF history (t (s), y (m)), or None without supports.
     """
     delta = analytic.spall_distance(pressure, c, sigma_c, end)
     scabs = delta is not None and delta < thickness
-    sdof = None
+    sdof = history = None
     if supports is not None:
         props = analytic.strip_properties(E, rho, thickness, span, supports, nu)
-        y_max, t_max = analytic.sdof_peak_deflection(props, pressure, end)
-        sdof = {"supports": supports, "peak_deflection_m": y_max, "peak_time_s": t_max,
-                "frequency_Hz": props.f}
+        history = analytic.sdof_response(props, pressure, end)
+        k = int(np.argmax(np.abs(history[1])))
+        sdof = {"supports": supports, "peak_deflection_m": float(history[1][k]),
+                "peak_time_s": float(history[0][k]), "frequency_Hz": props.f}
     return {"wave_speed_m_s": c,
             "scab_thickness_m": delta if scabs else None,
             "scab_velocity_m_s": analytic.scab_velocity(pressure, c, rho, delta) if scabs else None,
             "ejection_velocity_m_s": float(analytic.ejection_velocity(sigma_c, rho, E)),
-            "sdof_elastic": sdof}
+            "sdof_elastic": sdof}, history
