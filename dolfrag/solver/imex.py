@@ -88,6 +88,7 @@ class Imex:
         V = space.V
         self.u, self.v, self.f, self.dv = (compat.Function(V) for _ in range(4))
         self.u.name, self.v.name = "displacement", "velocity"
+        self._u_n = np.zeros_like(self.u.x.array) if rebars is not None else None  # u_n, for the bars' energy
         self.owned = slice(0, space.n_owned_dofs * space.gdim)
         comps = step.stars.comps
         self.star_comps = comps
@@ -132,7 +133,7 @@ class Imex:
         p = float(self.pressure(self.t))
         np.negative(Ku, out=f[own])
         if self.rebars is not None:
-            self._u_n = u.copy()
+            np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
         compat.scatter_forward(self.f)
