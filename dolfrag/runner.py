@@ -272,7 +272,7 @@ def run(case, out, quiet=False, comm=None):
         span, thickness, free_face = section
         # in the reference configuration: a bounding box then says where a piece came from
         reference = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, None, break_time)
-        peak_force = [comm.allreduce(integ.rebars.peak_force, op=MPI.MAX)] if integ.rebars else None
+        peak_force = [summary["rebar"]["peak_force_N"]] if integ.rebars else None
         block = None
         if comm.rank == 0:
             d = space.gdim

@@ -12,7 +12,9 @@ step's contact impulse:
 
 u_theta = theta u_{n+1} + (1 - theta) u_n; g = R B u the link jumps in the link frames R
 (interface/jumps.py, links.py); w the link weights; t the cohesive traction of the model
-with its damage lagged by one step (interface/models.py: each step problem is monotone);
+with its damage lagged by one step (interface/models.py: each step problem is monotone),
+plus the bars' forces B_r^T (L N) at u_theta when there are rebars (rebar.py; their tangent
+joins K, and their elastic energy and yield dissipation join the balance);
 p_theta = theta p(t_{n+1}) + (1 - theta) p(t_n) the pressure on the load vector l; phi the
 Alart-Curnier projection (interface/contact.py): Signorini on the end-of-step gap, Coulomb
 with mu(state_n) on the step's slip, no penalty. With linear forces Newton's matrix is
