@@ -32,7 +32,29 @@ class ProjectionJacobian(NamedTuple):
 OPEN, STICK, SLIP = 0, 1, 2
 
 
-def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
+class Branches(NamedTuple):
+    """Which piece of the piecewise-smooth projections each link is on; n links, m = d - 1.
+
+    contact (n,) bool: normal branch in contact (r~_N - rho_N g_N >= 0), else open.
+    stick, slip (n,) bool: tangential branch (neither: a cone of radius 0, phi_T = r_T).
+    pressed (n,) bool: r~_N > 0, the cone grows with the pressure.
+    e (n, m): unit direction of y = r_T - rho_T g_T_rate where slipping, else 0.
+    scale (n,): cone radius / |y| where slipping, else 0.
+    """
+    contact: np.ndarray
+    stick: np.ndarray
+    slip: np.ndarray
+    pressed: np.ndarray
+    e: np.ndarray
+    scale: np.ndarray
+
+    @property
+    def status(self):
+        """(n,) int: OPEN, STICK or SLIP; a link is open when its normal branch is."""
+        return np.where(self.contact, np.where(self.stick, STICK, SLIP), OPEN)
+
+
+def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
     """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; PHYSICS.md §1).
 
     symbol    meaning                                            unit        shape
@@ -56,40 +78,58 @@ def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift
     of the order of the interface stiffness (C_N or E/h) balances reactions and gaps.
     Branches: contact where r~_N - rho_N g_N >= 0 (else open); with y = r_T - rho_T
     g_T_rate, stick where |y| <= radius and radius > 0, slip where |y| > radius > 0, and
-    phi_T = r_T where the radius is 0. mu is treated as fixed (no derivative).
+    phi_T = r_T where the radius is 0.
 
-    Returns phi_N (n,) Pa, phi_T (n, d-1) Pa, a ProjectionJacobian, and status (n,) int:
-    0 = open (OPEN), 1 = stick (STICK), 2 = slip (SLIP); a link is open when the normal
-    branch is.
+    Returns phi_N (n,) Pa, phi_T (n, d-1) Pa and the Branches.
     """
     r_N, r_T, g_N, v = (np.asarray(a, dtype=float) for a in (r_N, r_T, g_N, g_T_rate))
-    n, m = r_T.shape
-    rho_N = np.broadcast_to(np.asarray(rho_N, dtype=float), (n,))
+    n = len(r_N)
+    rho_N = np.asarray(rho_N, dtype=float)
     rho_T = np.asarray(rho_T, dtype=float)[..., None]
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
     r_shift = r_N + shift
-    contact = r_shift - rho_N * g_N >= 0
-    phi_N = r_shift - np.maximum(0.0, r_shift - rho_N * g_N)
-    radius = mu * np.maximum(r_shift, 0.0) + cohesion_T
+    y_N = r_shift - rho_N * g_N
+    contact = y_N >= 0
+    phi_N = r_shift - np.maximum(0.0, y_N)
+    pressed = r_shift > 0
+    radius = mu * np.where(pressed, r_shift, 0.0) + cohesion_T
     y = r_T - rho_T * v
     norm_y = np.linalg.norm(y, axis=-1)
-    stick = (norm_y <= radius) & (radius > 0)
-    slip = (norm_y > radius) & (radius > 0)
+    cone = radius > 0
+    stick = (norm_y <= radius) & cone
+    slip = (norm_y > radius) & cone
     e = np.divide(y, norm_y[:, None], out=np.zeros_like(y), where=slip[:, None])
     scale = np.divide(radius, norm_y, out=np.zeros(n), where=slip)
     phi_T = np.where(stick[:, None], rho_T * v, r_T - scale[:, None] * y)
+    return phi_N, phi_T, Branches(contact, stick, slip, pressed, e, scale)
 
+
+def projection_jacobian(branches, rho_N, rho_T, mu):
+    """Generalised Jacobian of (phi_N, phi_T) on the given Branches (same arguments as
+    contact_friction_residual); mu is treated as fixed (no derivative)."""
+    contact, stick, slip, pressed, e, scale = branches
+    n, m = e.shape
+    rho_N = np.broadcast_to(np.asarray(rho_N, dtype=float), (n,))
+    rho_T = np.asarray(rho_T, dtype=float)[..., None]
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
     eye = np.eye(m)
     # slip: d(y/|y|)/dy = (I - e e^T) / |y|
     P = scale[:, None, None] * (eye - e[:, :, None] * e[:, None, :])
     dT_drT = np.where(stick[:, None, None], 0.0, eye - P)
     dT_dgT = rho_T[..., None] * np.where(stick[:, None, None], eye, P)
-    dT_drN = -(mu * (slip & (r_shift > 0)))[:, None] * e
+    dT_drN = -(mu * (slip & pressed))[:, None] * e
     zeros = np.zeros((n, m))
-    jac = ProjectionJacobian(np.where(contact, 0.0, 1.0), zeros, np.where(contact, rho_N, 0.0),
-                             zeros, dT_drN, dT_drT, zeros, dT_dgT)
-    status = np.where(contact, np.where(stick, STICK, SLIP), OPEN)
-    return phi_N, phi_T, jac, status
+    return ProjectionJacobian(np.where(contact, 0.0, 1.0), zeros, np.where(contact, rho_N, 0.0),
+                              zeros, dT_drN, dT_drT, zeros, dT_dgT)
+
+
+def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
+    """contact_friction_residual with its projection_jacobian and the status (n,) int:
+    0 = open (OPEN), 1 = stick (STICK), 2 = slip (SLIP); a link is open when the normal
+    branch is. Returns phi_N, phi_T, a ProjectionJacobian, status."""
+    phi_N, phi_T, branches = contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift,
+                                                       cohesion_T)
+    return phi_N, phi_T, projection_jacobian(branches, rho_N, rho_T, mu), branches.status
 
 
 def link_blocks(NN, NT, TN, TT):

@@ -10,6 +10,11 @@ import numpy as np
 
 from dolfrag.interface import laws
 
+# Relative margin of the damage-threshold test in Rccm.trial_state: links this close to
+# their threshold go to the envelope, which decides exactly (round-off of w / beta_n
+# against the law's own test w / Y' < beta_n is ~1e-16).
+THRESHOLD_MARGIN = 1e-9
+
 # An RCCM link never reaches beta = 0 (the traction decays like w^2 / (C_N g^3)); it is
 # counted broken past 10 u0 (beta = 1/100, traction sigma_c / 1000), the criterion of
 # LMGC90's example scripts (PHYSICS.md §1).
@@ -48,7 +53,22 @@ class Elastic:
         return np.zeros(self.n_links)
 
 
-class Rccm:
+class _Model:
+    """What every breakable model offers the star solvers: ``springs`` (the traction of a
+    step, with the state lagged, and its tangent), ``trial_state`` (the state the law gives
+    at the step's jumps: the one ``store`` accepts), and both together in ``cohesion``."""
+
+    def trial_state(self, g_N, g_T, state_n, r_N=None):
+        """The state after the step: unchanged by default (the rigid laws' state follows from
+        the converged gap, in ``store``)."""
+        return state_n
+
+    def cohesion(self, g_N, g_T, state_n, r_N=None):
+        """``springs`` with the trial state in place of state_n."""
+        return self.springs(g_N, g_T, state_n)._replace(state=self.trial_state(g_N, g_T, state_n, r_N))
+
+
+class Rccm(_Model):
     """RCCM damage (Raous-Cangemi-Cocu / Monerie) with unilateral contact and Coulomb
     friction mu (1 - beta). State: beta (n_links,), 1 sound .. 0 broken.
 
@@ -81,11 +101,9 @@ class Rccm:
     def absorb(self, work):
         """Cohesive work of the constraint: none (no shift)."""
 
-    def cohesion(self, g_N, g_T, beta_n, r_N=None):
+    def springs(self, g_N, g_T, beta_n):
         """Traction of the step, with the damage lagged by one step: r = beta_n^2 C g
-        (normal part in opening only), its tangent beta_n^2 C, and the damage the law gives
-        at these jumps (the state after the step); r_N (Pa, >= 0 in compression, or None):
-        the contact pressure of the same iterate, for mu_i.
+        (normal part in opening only) and its tangent beta_n^2 C; the state is beta_n.
 
         Why lagged: with beta implicit, a star whose softening stiffness exceeds its mass
         term (h^2/4 w |dr/dg| > m, always the case at C = 10-100 E/h) has several solutions,
@@ -93,18 +111,41 @@ class Rccm:
         in the same run (measured). Lagged, each star problem is monotone (unique), and the
         energy the drop beta_n -> beta frees is booked exactly (store)."""
         secant = beta_n**2
-        drive = g_T if r_N is None or self.mu_i == 0 else laws.mohr_coulomb_shear(g_T, r_N, secant, self.C_T,
-                                                                                 self.mu_i)
-        beta = self.envelope(g_N, drive, beta_n)
         m = g_T.shape[1]
-        zeros = np.zeros((len(beta), m))
+        zeros = np.zeros((len(secant), m))
         return Cohesion(secant * self.C_N * np.maximum(g_N, 0.0), secant[:, None] * self.C_T * g_T,
                         secant * self.C_N * (g_N > 0), secant[:, None, None] * self.C_T * np.eye(m),
-                        zeros, zeros, beta)
+                        zeros, zeros, beta_n)
+
+    def trial_state(self, g_N, g_T, beta_n, r_N=None):
+        """The damage the law gives at these jumps (the state after the step); r_N (Pa,
+        >= 0 in compression, or None): the contact pressure of the same iterate, for mu_i.
+
+        Only links whose driving energy Y' passes the damage threshold of their beta_n can
+        damage (mu_i only lowers Y'); the envelope is evaluated on those alone, and
+        decides (THRESHOLD_MARGIN keeps the test from missing one by round-off)."""
+        may = self.driving_energy(g_N, g_T) > (1 - THRESHOLD_MARGIN) * self.damage_threshold(beta_n)
+        beta = beta_n.copy()
+        if may.any():
+            g_N, g_T, beta_n = g_N[may], g_T[may], beta_n[may]
+            drive = g_T if r_N is None or self.mu_i == 0 else laws.mohr_coulomb_shear(
+                g_T, r_N[may], beta_n**2, self.C_T, self.mu_i)
+            beta[may] = self.envelope(g_N, drive, beta_n)
+        return beta
 
     def envelope(self, g_N, g_T, beta_n):
         """The damage the law gives at the jumps g_N, g_T from beta_n."""
         return laws.rccm(g_N, g_T, beta_n, self.C_N, self.C_T, self.w, self.b, self.h)[-1]
+
+    def driving_energy(self, g_N, g_T):
+        """Y' = C_N <g_N>+^2 + C_T |g_T|^2 (J/m^2) at link-frame jumps g_N (n...), g_T (n..., d-1)."""
+        return self.C_N * np.maximum(g_N, 0.0) ** 2 + self.C_T * np.sum(g_T**2, axis=-1)
+
+    def damage_threshold(self, beta_n):
+        """The driving energy Y' (J/m^2) above which beta falls below beta_n: w / beta_n
+        (the rate-independent envelope beta = w / Y', and the viscous law's growth
+        condition beta_n Y' > w alike); inf for a broken link."""
+        return np.divide(self.w, beta_n, out=np.full(np.shape(beta_n), np.inf), where=beta_n > 0)
 
     def store(self, links, state, valid, g_N, g_T):
         """Accept the converged state of the links (n, L) where valid (n, L); g_N (n, L),
@@ -115,10 +156,11 @@ class Rccm:
         the elastic energy 1/2 (beta_n^2 - beta^2)(C_N <g_N>+^2 + C_T |g_T|^2): that is the
         dissipation booked (it equals w (beta_n - beta) while the link follows the envelope,
         and exceeds it when a link fails within a step)."""
-        idx = links[valid]
-        Y = self.C_N * np.maximum(g_N[valid], 0.0) ** 2 + self.C_T * np.sum(g_T[valid] ** 2, axis=-1)
-        self.released[idx] += 0.5 * (self.beta[idx] ** 2 - state[valid] ** 2) * Y
-        self.beta[idx] = state[valid]
+        changed = valid & (state != self.beta[links])  # the others release nothing
+        idx = links[changed]
+        self.released[idx] += 0.5 * (self.beta[idx] ** 2 - state[changed] ** 2) * self.driving_energy(
+            g_N[changed], g_T[changed])
+        self.beta[idx] = state[changed]
 
     def stored_energy(self, g_N, g_T):
         """Elastic energy density of every link (J/m^2), at link-frame jumps g_N, g_T."""
@@ -149,6 +191,14 @@ class RccmDecoupled(Rccm):
     def envelope(self, g_N, g_T, beta_n):
         return laws.rccm_decoupled(g_N, g_T, beta_n, self.C_N, self.C_T, self.sigma_c, self.G_c)[-1]
 
+    def damage_threshold(self, beta_n):
+        """Y' = C_N delta^2 (J/m^2) where the envelope's beta equals beta_n:
+        beta_n^2 C_N delta = sigma_c (delta_c - delta) / (delta_c - delta_0), laws.rccm_decoupled."""
+        delta_c = laws.decoupled_parameters(self.sigma_c, self.G_c)
+        delta_0 = self.sigma_c / self.C_N
+        delta = self.sigma_c * delta_c / (beta_n**2 * self.C_N * (delta_c - delta_0) + self.sigma_c)
+        return self.C_N * delta**2
+
     def broken(self):
         return self.beta <= 0.0
 
@@ -159,7 +209,7 @@ class RccmDecoupled(Rccm):
 OPENING_TOLERANCE = 1e-9
 
 
-class _Rigid:
+class _Rigid(_Model):
     """Bookkeeping shared by the laws that keep a link rigid, as a constraint, until it
     opens: the star solve enforces Signorini-Coulomb shifted by the cohesion
     (interface/contact.py, ``shift`` and ``shear_cohesion``), and reports the work the
@@ -212,7 +262,7 @@ class Threshold(_Rigid):
     def shear_cohesion(self, lost):
         return np.zeros_like(lost)
 
-    def cohesion(self, g_N, g_T, lost_n, r_N=None):
+    def springs(self, g_N, g_T, lost_n):
         """No springs: the whole law is in the shifted contact constraint."""
         return _no_springs(g_T, lost_n)
 
@@ -289,7 +339,7 @@ class LinearSoftening(_Rigid):
         inside = (state > 0) & (state < self.delta_c)
         return np.where(inside, self.sigma_c * (1 / np.where(inside, state, 1.0) - 1 / self.delta_c), 0.0)
 
-    def cohesion(self, g_N, g_T, state_n, r_N=None):
+    def springs(self, g_N, g_T, state_n):
         """Secant springs at the lagged state_n (none on rigid links: the constraint
         carries them)."""
         S = self.secant(state_n)

@@ -21,6 +21,10 @@ whichever round-off chose. Lagged, every star problem is monotone: Newton is exa
 piecewise-linear pieces and stops in 4-10 iterations. Friction uses the law's coefficient
 at the start of the step (mu (1 - beta_n) for RCCM), so its derivative is not needed.
 
+A step starts from the affine prediction of each star's last piece (solver/active_set.py):
+most stars are solved by it, checked by one residual evaluation, and only the stars whose
+piece or damage changed pay for a Jacobian. The others start from zero (see _solve_group).
+
 Each star stops on its own. A star that Newton has not solved after FALLBACK iterations
 (active-set wandering, measured on rigid laws with friction) is handed to projected
 Gauss-Seidel sweeps over its links, still exact and local; a star still above STALL after
@@ -29,7 +33,8 @@ max_iterations is counted as unconverged, and the runner stops with ConvergenceE
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.interface.contact import STICK, contact_friction_projection, link_blocks
+from dolfrag.interface.contact import contact_friction_residual, link_blocks, projection_jacobian
+from dolfrag.solver.active_set import SLIP, ActiveSets, pattern_code
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -110,7 +115,7 @@ class StarNewton:
         self.unconverged = 0
         self.residual = 0.0  # largest final scaled residual of the step's stars
         self._data = []
-        self._cache = []
+        self._sets = []
         for grp in stars.groups:
             n_s, q = grp.comps.shape
             k, L = q // d, grp.links.shape[1]
@@ -128,8 +133,7 @@ class StarNewton:
             frozen = np.zeros((n_s, L), dtype=bool)  # both copies prescribed
             frozen[s, l] = held[s, grp.slot_A[s, l]] & held[s, grp.slot_B[s, l]]
             self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, fixed, frozen))
-            # last Jacobian inverse of each star, reused while its damage does not change
-            self._cache.append((np.zeros((n_s, q + L * d, q + L * d)), np.zeros(n_s, dtype=bool)))
+            self._sets.append(ActiveSets(n_s, L, d, q + L * d))
 
     def solve(self, f, g_n, v, out):
         """Velocity increments of every owned star into out[star comps].
@@ -157,8 +161,8 @@ class StarNewton:
         self._floor_m, self._floor_c = FLOOR * largest
         self.iterations = self.unconverged = 0
         self.residual = 0.0
-        for grp, data, cache in zip(self.stars.groups, self._data, self._cache):
-            x = self._solve_group(grp, data, cache, self.h * f[grp.comps], out[grp.comps], g_loc[grp.links],
+        for grp, data, sets in zip(self.stars.groups, self._data, self._sets):
+            x = self._solve_group(grp, data, sets, self.h * f[grp.comps], out[grp.comps], g_loc[grp.links],
                                   dg_loc[grp.links])
             out[grp.comps] = x
 
@@ -179,16 +183,19 @@ class StarNewton:
         self.contact_dissipated -= 0.5 * weight @ ((r_N + self._shift) * dg[:, 0] + friction_share * slip_work)
         self.model.absorb(-0.5 * (-self._shift * dg[:, 0] + (1 - friction_share) * slip_work))
 
-    def _solve_group(self, grp, data, cache, rhs, x_fixed, g_n, dg_pred):
+    def _solve_group(self, grp, data, sets, rhs, x_fixed, g_n, dg_pred):
         """Newton on the group's stars, each stopping on its own once its scaled residual
         is below rtol; a star still above STALL after max_iterations is counted unconverged.
 
-        With the damage lagged, a star's Jacobian depends only on its contact pattern and
-        beta_n: the first step of a star whose beta_n has not changed uses its last
-        Jacobian's inverse, which solves its piecewise-linear problem exactly when the
-        pattern has not changed either (the residual check decides)."""
+        Iteration 1 evaluates the residual at the affine prediction of each star whose last
+        piece is cached (``sets``): a star still on that piece is solved there (exactly, but
+        for round-off and the REGULARISATION of sticking links, which the next step, taken
+        with the cached inverse, removes), and the residual check decides, as for any
+        iterate. Every other star starts from zero. Newton's Jacobians go into ``sets``; a
+        star that converges on the piece of its stored Jacobian keeps it, and the others,
+        and every star whose damage changed, get the Jacobian of their converged piece,
+        with the new damage, for the next step."""
         BR_all, weight_all, m_all, rho_all, fixed_all, frozen_all = data
-        inverse, cached = cache
         h, d = self.h, self.stars.gdim
         n_s, q = rhs.shape
         L = grp.links.shape[1]
@@ -196,54 +203,67 @@ class StarNewton:
             self.reaction[grp.comps] = np.where(fixed_all, m_all * x_fixed - rhs, 0.0) / h
             return np.where(fixed_all, x_fixed, rhs / m_all)
         x = np.where(fixed_all, x_fixed, 0.0)  # Newton never moves the prescribed components
-        # reactions start from zero, not from the last step: around a rigid star they are
-        # determined only up to self-equilibrated rings (see REGULARISATION), which a warm
-        # start carried from step to step until they choked the friction cones (measured:
-        # threshold and linear-softening runs then failed to converge; cold, they complete)
+        # reactions start from zero (or from this step's prediction), never from the last
+        # step: around a rigid star they are determined only up to self-equilibrated rings
+        # (see REGULARISATION), which a warm start carried from step to step until they
+        # choked the friction cones (measured: threshold and linear-softening runs then
+        # failed to converge; cold, they complete)
         r = np.zeros(grp.links.shape + (d,))
         state_n = self.model.state_at(grp.links)
         # padding slots: no cohesion and no friction, so their rows are the identity (open,
         # r = 0); a cohesive cone there made them stick at rest, a zero row in 3D stars
         mu, shift, cohesion_T = (np.where(grp.valid, a[grp.links], 0.0)
                                  for a in (self._mu, self._shift, self._cohesion_T))
+        predicted = sets.valid & ~(fixed_all & (x_fixed != 0)).any(axis=1)  # an imposed motion: not cached
+        if predicted.any():  # on every star at once: cheaper than gathering the predicted ones
+            z = sets.predict(BR_all, weight_all, rho_all, rhs, fixed_all, g_n, dg_pred, mu, shift, cohesion_T, h)
+            x[predicted], r[predicted] = z[predicted, :q], z[predicted, q:].reshape(-1, L, d)
         todo = np.arange(n_s)
         for iteration in range(1, self.max_iterations + 1):
-            BR, w, m, rho, fixed = BR_all[todo], weight_all[todo], m_all[todo], rho_all[todo], fixed_all[todo]
-            frozen = frozen_all[todo]
-            valid = grp.valid[todo]
-            Bx = np.matmul(BR, x[todo][:, :, None])[:, :, 0].reshape(-1, L, d)
-            gbar = g_n[todo] + 0.25 * h * Bx
-            slip = dg_pred[todo] + h * Bx
-            g_end = g_n[todo] + slip
+            pick = (lambda a: a) if iteration == 1 else (lambda a: a[todo])  # noqa: E731 (no copies at first)
+            BR, w, m, rho, fixed, frozen, valid = (pick(a) for a in (BR_all, weight_all, m_all, rho_all, fixed_all,
+                                                                     frozen_all, grp.valid))
+            x_t, r_t, g_t, dg_t, state_t, rhs_t = (pick(a) for a in (x, r, g_n, dg_pred, state_n, rhs))
+            mu_t, shift_t, cohesion_T_t = pick(mu), pick(shift), pick(cohesion_T)
+            Bx = np.einsum("spq,sq->sp", BR, x_t).reshape(-1, L, d)
+            gbar = g_t + 0.25 * h * Bx
+            slip = dg_t + h * Bx
+            g_end = g_t + slip
             g_end[..., 0] = np.where(valid, g_end[..., 0], 1.0)  # padding: open, so r stays 0
-            rt = r[todo]
-            law = self.model.cohesion(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1),
-                                      state_n[todo].ravel(), rt[..., 0].ravel())
+            law = self.model.springs(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1), state_t.ravel())
             r_coh = np.concatenate([law.r_N[:, None], law.r_T], axis=1).reshape(-1, L, d)
-            t = (r_coh - rt) * w[..., None]
-            interface_force = h * np.matmul(t.reshape(-1, 1, L * d), BR)[:, 0]
-            R_m = m * x[todo] - rhs[todo] + interface_force
+            t = (r_coh - r_t) * w[..., None]
+            interface_force = h * np.einsum("spq,sp->sq", BR, t.reshape(-1, L * d))
+            R_m = m * x_t - rhs_t + interface_force
             reaction = np.where(fixed, R_m / h, 0.0)
             R_m[fixed] = 0.0
-            phi_N, phi_T, jac, status = contact_friction_projection(
-                rt[..., 0].ravel(), rt[..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
-                slip[..., 1:].reshape(-1, d - 1), *(2 * [np.where(frozen, FROZEN * rho, rho).ravel()]),
-                mu[todo].ravel(), shift[todo].ravel(),
-                cohesion_T[todo].ravel())
+            rho_link = np.where(frozen, FROZEN * rho, rho).ravel()
+            phi_N, phi_T, branches = contact_friction_residual(
+                r_t[..., 0].ravel(), r_t[..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
+                slip[..., 1:].reshape(-1, d - 1), rho_link, rho_link, mu_t.ravel(), shift_t.ravel(),
+                cohesion_T_t.ravel())
             phi = np.concatenate([phi_N[:, None], phi_T], axis=1).reshape(-1, L, d)
-            scale_m = np.maximum(np.abs(rhs[todo]), np.maximum(np.abs(m * x[todo]), np.abs(interface_force))).max(axis=1)
+            scale_m = np.maximum(np.abs(rhs_t), np.maximum(np.abs(m * x_t), np.abs(interface_force))).max(axis=1)
             # the terms phi is made of, so that their cancellation (a sticking link moving
             # with its neighbours: slip = dg_pred + h B x ~ 0) sets no false floor
-            terms = np.abs(g_n[todo]) + np.abs(dg_pred[todo]) + h * np.abs(Bx)
-            scale_c = np.abs(rt).max(axis=(1, 2)) + (rho[..., None] * terms * valid[..., None]).max(axis=(1, 2))
+            terms = np.abs(g_t) + np.abs(dg_t) + h * np.abs(Bx)
+            scale_c = np.abs(r_t).max(axis=(1, 2)) + (rho[..., None] * terms * valid[..., None]).max(axis=(1, 2))
             scaled = np.maximum(_ratio(np.abs(R_m).max(axis=1), np.maximum(scale_m, self._floor_m)),
                                 _ratio(np.abs(phi).max(axis=(1, 2)), np.maximum(scale_c, self._floor_c)))
             done = scaled <= (self.rtol if iteration < FALLBACK else STALL)  # stalled: accept
+            code = _code(branches, gbar, valid, L)
+            # a star's stored inverse stays valid if it is the Jacobian of the piece the star
+            # converged on (then only damage can change it, see below)
+            ends_on = (code[done] == sets.code[todo[done]]).all(axis=1) & sets.valid[todo[done]]
+            sets.valid[todo[done]] = ends_on
+            if iteration == 1:  # the residual decides; the piece only whether the cached inverse may finish
+                on_piece = predicted & (code == sets.code).all(axis=1)
             self.residual = max(self.residual, scaled[done].max(initial=0.0))
-            g_mid = g_n[todo] + 0.5 * slip  # (g_n + g_{n+1}) / 2, where the energy is stored
-            self.model.store(grp.links[todo][done], law.state.reshape(-1, L)[done], valid[done],
-                             g_mid[done][..., 0], g_mid[done][..., 1:])
-            self.reaction[grp.comps[todo[done]]] = reaction[done]
+            g_mid = g_t + 0.5 * slip  # (g_n + g_{n+1}) / 2, where the energy is stored
+            every = slice(None) if done.all() else done  # views, not copies, in the common case
+            self._store(grp.links[todo][every], gbar[every], state_t[every], r_t[every][..., 0], valid[every],
+                        g_mid[every])
+            self.reaction[grp.comps[todo[every]]] = reaction[every]
             self.iterations = max(self.iterations, iteration)
             if done.all():
                 break
@@ -252,8 +272,8 @@ class StarNewton:
             todo = todo[keep]
             if iteration >= FALLBACK and (iteration - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 x[todo], r[todo] = self._gauss_seidel(
-                    BR[keep], w[keep], m[keep], fixed[keep], valid[keep], law, keep, L, rhs[todo], x[todo],
-                    r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo],
+                    BR[keep], w[keep], m[keep], fixed[keep], valid[keep], _link_tangent(law, keep, L), rhs[todo],
+                    x[todo], r[todo], g_n[todo], dg_pred[todo], mu[todo], shift[todo], cohesion_T[todo],
                     sweeps=min(SWEEPS * 2 ** ((iteration - FALLBACK) // 2), MAX_SWEEPS))
                 continue
             newton = np.ones(len(todo), dtype=bool)  # stars taking a Newton step from here
@@ -271,17 +291,20 @@ class StarNewton:
                 r[b] = base_r[b] + (alpha * direction[b, q:]).reshape(-1, L, d)
                 a = todo[newton]
                 base_x[a], base_r[a], base_scaled[a], halvings[a] = x[a], r[a], scaled[keep][newton], 0
-            reuse = cached[todo] if iteration == 1 else np.zeros(len(todo), dtype=bool)
-            fresh = ~reuse & newton
+            # on its cached piece, a prediction only short of REGULARISATION is finished by
+            # the cached inverse; elsewhere a fresh Jacobian (the sets' storage serves Newton)
+            fresh = ~on_piece[todo] & newton if iteration == 1 else newton
             if fresh.any():
                 new = keep.copy()
                 new[keep] = fresh
-                stick = (status == STICK).reshape(-1, L)[new]
-                J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new], stick, law, jac, new, L)
-                inverse[todo[fresh]] = np.linalg.inv(J)
-                cached[todo[fresh]] = True
+                jac = projection_jacobian(_subset(branches, new, L), rho_link.reshape(-1, L)[new].ravel(),
+                                          rho_link.reshape(-1, L)[new].ravel(), mu_t[new].ravel())
+                D = _link_tangent(law, new, L)
+                J = self._jacobian(BR[new], w[new], m[new], fixed[new], frozen[new],
+                                   branches.stick.reshape(-1, L)[new], D, jac)
+                sets.keep(todo[fresh], np.linalg.inv(J), code[new], D, cacheable=self._cacheable(frozen[new], code[new]))
             a = todo[newton]
-            delta = -np.matmul(inverse[a], R[newton][:, :, None])[:, :, 0]
+            delta = -np.einsum("sij,sj->si", sets.inverse[a], R[newton])
             if CYCLE < iteration < FALLBACK:
                 direction[a] = delta
             x[a] += delta[:, :q]
@@ -290,14 +313,55 @@ class StarNewton:
             # a star stalled at a stick-slip kink within STALL of its scales is accepted
             self.unconverged += np.count_nonzero(scaled[keep] > STALL)
             self.residual = max(self.residual, scaled[keep].max())
-            self.model.store(grp.links[todo], law.state.reshape(-1, L)[keep], grp.valid[todo],
-                             g_mid[keep][..., 0], g_mid[keep][..., 1:])
+            self._store(grp.links[todo], gbar[keep], state_t[keep], r_t[keep][..., 0], grp.valid[todo], g_mid[keep])
         self.r[grp.links[grp.valid]] = r[grp.valid]
-        damaged = (self.model.state_at(grp.links) != state_n) & grp.valid
-        cached[damaged.any(axis=1)] = False
+        damaged = ((self.model.state_at(grp.links) != state_n) & grp.valid).any(axis=1)
+        self._keep_pieces(grp, data, sets, np.flatnonzero(~sets.valid | damaged), x, r, g_n, dg_pred)
         return x
 
-    def _gauss_seidel(self, BR, w, m, fixed, valid, law, keep, L, rhs, x, r, g_n, dg_pred, mu, shift, cohesion_T,
+    def _cacheable(self, frozen, code):
+        """Stars (n,) whose Jacobian is that of an affine piece: no frozen link (a fixed-point
+        iteration) and, in 3D, no slipping link (smooth, not affine)."""
+        affine = ~frozen.any(axis=1)
+        return affine & ~((code & SLIP) > 0).any(axis=1) if self.stars.gdim == 3 else affine
+
+    def _store(self, links, gbar, state_n, r_N, valid, g_mid):
+        """Accept the stars' converged state: the law's trial state at their springs' jumps
+        gbar (n, L, d) from state_n (n, L), with the contact pressure r_N (n, L)."""
+        d = gbar.shape[-1]
+        state = self.model.trial_state(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1), state_n.ravel(),
+                                       r_N.ravel())
+        self.model.store(links, state.reshape(state_n.shape), valid, g_mid[..., 0], g_mid[..., 1:])
+
+    def _keep_pieces(self, grp, data, sets, stars, x, r, g_n, dg_pred):
+        """Store, for the next step's prediction, the Jacobian of the piece each given star
+        converged on (x, r), with the damage after the step (``_cacheable`` ones only)."""
+        BR_all, weight_all, m_all, rho_all, fixed_all, frozen_all = data
+        sets.valid[stars] = False
+        if not len(stars):
+            return
+        h, d, L = self.h, self.stars.gdim, grp.links.shape[1]
+        links, valid = grp.links[stars], grp.valid[stars]
+        state = self.model.state_at(links)
+        mu, shift, cohesion_T = (np.where(valid, a, 0.0) for a in (self.model.friction(state), self.model.shift(state),
+                                                                   self.model.shear_cohesion(state)))
+        Bx = np.einsum("spq,sq->sp", BR_all[stars], x[stars]).reshape(-1, L, d)
+        gbar = g_n[stars] + 0.25 * h * Bx
+        slip = dg_pred[stars] + h * Bx
+        g_end = g_n[stars] + slip
+        g_end[..., 0] = np.where(valid, g_end[..., 0], 1.0)
+        rho = rho_all[stars].ravel()
+        _, _, branches = contact_friction_residual(
+            r[stars][..., 0].ravel(), r[stars][..., 1:].reshape(-1, d - 1), g_end[..., 0].ravel(),
+            slip[..., 1:].reshape(-1, d - 1), rho, rho, mu.ravel(), shift.ravel(), cohesion_T.ravel())
+        law = self.model.springs(gbar[..., 0].ravel(), gbar[..., 1:].reshape(-1, d - 1), state.ravel())
+        D = _link_tangent(law, np.ones(len(stars), dtype=bool), L)
+        code = _code(branches, gbar, valid, L)
+        J = self._jacobian(BR_all[stars], weight_all[stars], m_all[stars], fixed_all[stars], frozen_all[stars],
+                           branches.stick.reshape(-1, L), D, projection_jacobian(branches, rho, rho, mu.ravel()))
+        sets.keep(stars, np.linalg.inv(J), code, D, cacheable=self._cacheable(frozen_all[stars], code))
+
+    def _gauss_seidel(self, BR, w, m, fixed, valid, D, rhs, x, r, g_n, dg_pred, mu, shift, cohesion_T,
                       sweeps=SWEEPS):
         """Projected Gauss-Seidel over the links of the given stars (the nonsmooth
         Gauss-Seidel of LMGC90, star by star): with the springs' tangent D of the current
@@ -306,8 +370,7 @@ class StarNewton:
         Signorini-Coulomb set, rho_l = 1 / max diag G_ll. Returns x (n, q), r (n, L, d)."""
         h, d = self.h, self.stars.gdim
         n, q = m.shape
-        pick = lambda a: a.reshape(-1, L, *a.shape[1:])[keep]  # noqa: E731
-        D = link_blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
+        L = D.shape[1]
         BR4 = BR.reshape(n, L, d, q)
         A = 0.25 * h * h * np.einsum("slip,sl,slij,sljq->spq", BR4, w, D, BR4)
         A[:, np.arange(q), np.arange(q)] += m
@@ -343,16 +406,17 @@ class StarNewton:
                 break
         return x0 + np.matmul(X, r.reshape(n, L * d, 1))[..., 0], r
 
-    def _jacobian(self, BR, w, m, fixed, frozen, stick, law, jac, keep, L):
-        """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for the stars ``keep``;
-        on frozen links, identity rows (see FROZEN)."""
+    def _jacobian(self, BR, w, m, fixed, frozen, stick, D, jac):
+        """Generalised Jacobian (n, q + L d, q + L d) of (R_m, phi) for n stars, from the
+        springs' link tangents D (n, L, d, d) and the ProjectionJacobian jac (flat over the
+        n L links); on frozen links, identity rows (see FROZEN)."""
         h, d = self.h, self.stars.gdim
         n, q = m.shape
+        L = D.shape[1]
         N = q + L * d
-        pick = lambda a: a.reshape(-1, L, *a.shape[1:])[keep]  # noqa: E731
-        D = link_blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
-        Jg = link_blocks(pick(jac.dN_dgN), pick(jac.dN_dgT), pick(jac.dT_dgN), pick(jac.dT_dgT))
-        Jr = link_blocks(pick(jac.dN_drN), pick(jac.dN_drT), pick(jac.dT_drN), pick(jac.dT_drT))
+        shape = lambda a: a.reshape(n, L, *a.shape[1:])  # noqa: E731
+        Jg = link_blocks(*map(shape, (jac.dN_dgN, jac.dN_dgT, jac.dT_dgN, jac.dT_dgT)))
+        Jr = link_blocks(*map(shape, (jac.dN_drN, jac.dN_drT, jac.dT_drN, jac.dT_drT)))
         BR4 = BR.reshape(n, L, d, q)
         J = np.zeros((n, N, N))
         WDB = np.einsum("sl,slij,sljq->sliq", w, D, BR4).reshape(n, L * d, q)
@@ -374,6 +438,25 @@ class StarNewton:
 
 class ConvergenceError(RuntimeError):
     """Vertex stars whose Newton did not converge (the runner saves the state first)."""
+
+
+def _subset(flat, stars, L):
+    """A NamedTuple of arrays flat over the links of n stars (n L, ...), kept for ``stars``
+    (bool (n,))."""
+    return type(flat)(*(a.reshape(-1, L, *a.shape[1:])[stars].reshape(-1, *a.shape[1:]) for a in flat))
+
+
+def _link_tangent(law, stars, L):
+    """The springs' link-frame tangent blocks (n, L, d, d) of a Cohesion (flat over n L
+    links), for ``stars`` (bool (n,))."""
+    pick = lambda a: a.reshape(-1, L, *a.shape[1:])[stars]  # noqa: E731
+    return link_blocks(pick(law.dr_N_dg_N), pick(law.dr_N_dg_T), pick(law.dr_T_dg_N), pick(law.dr_T_dg_T))
+
+
+def _code(branches, gbar, valid, L):
+    """The pieces (n, L) of the links of n stars (0 on padding slots)."""
+    flat = pattern_code(branches, gbar[..., 0].ravel())
+    return np.where(valid, flat.reshape(-1, L), 0)
 
 
 def _ratio(a, scale):
