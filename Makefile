@@ -15,7 +15,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 
-.PHONY: install system-packages demo test bench clean
+.PHONY: install system-packages demo test bench peer clean
 
 install: system-packages $(VENV)/.installed
 
@@ -43,6 +43,16 @@ test: install
 
 bench: install
 	$(PY) benchmarks/step_cost.py
+
+# The peer comparison (docs/performance.md): Akantu in its own venv, for the benchmark only.
+AKANTU_VENV := .venv-akantu
+$(AKANTU_VENV)/.installed:
+	@[ -x $(AKANTU_VENV)/bin/python ] || /usr/bin/python3 -m venv $(AKANTU_VENV)
+	$(AKANTU_VENV)/bin/pip install -q --disable-pip-version-check "akantu==5.0.7.post1" "numpy<2"
+	@touch $@
+
+peer: install $(AKANTU_VENV)/.installed
+	$(PY) benchmarks/peer_akantu.py --akantu-python $(AKANTU_VENV)/bin/python
 
 clean:
 	rm -rf results .pytest_cache

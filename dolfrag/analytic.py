@@ -85,6 +85,42 @@ def spall_time(length, delta, c, rise):
     return rise + (length + delta) / c
 
 
+# Fragmentation of a bar stretched at a uniform strain rate (PHYSICS.md §4): scales of a
+# linear-softening cohesive law (Camacho & Ortiz 1996; Drugan 2001) and the mean fragment
+# size of three theories, each as s / L0 against the normalised rate eps_dot / eps_dot_0.
+
+def fragmentation_length(E, G_c, sigma_c):
+    """L0 = E G_c / sigma_c^2 (m): the cohesive length of a bar of modulus E (Pa) with
+    strength sigma_c (Pa) and toughness G_c (J/m^2)."""
+    return E * G_c / sigma_c**2
+
+
+def fragmentation_strain_rate(E, rho, G_c, sigma_c):
+    """eps_dot_0 = c sigma_c^3 / (E^2 G_c) (1/s), c = sqrt(E / rho): the rate at which the
+    time to reach sigma_c, sigma_c / (E eps_dot), equals L0 / c. E Pa, rho kg/m^3, G_c J/m^2,
+    sigma_c Pa."""
+    return np.sqrt(E / rho) * sigma_c**3 / (E**2 * G_c)
+
+
+def grady_size(rate):
+    """Grady 1988 (J. Mech. Phys. Solids 36:353), energy balance: s / L0 = (24 / rate^2)^(1/3),
+    rate = eps_dot / eps_dot_0 (i.e. s = (24 G_c / (rho eps_dot^2))^(1/3))."""
+    return np.cbrt(24 / np.asarray(rate, dtype=float) ** 2)
+
+
+def glenn_chudnovsky_size(rate):
+    """Glenn & Chudnovsky 1986 (J. Appl. Phys. 59:1379), elastic and fracture energy:
+    s / L0 = (4 / rate) sinh(asinh(1.5 rate) / 3); 2 at low rate, Grady's at high rate."""
+    rate = np.asarray(rate, dtype=float)
+    return 4 / rate * np.sinh(np.arcsinh(1.5 * rate) / 3)
+
+
+def zhou_molinari_ramesh_size(rate):
+    """Zhou, Molinari & Ramesh 2006 (Appl. Phys. Lett. 88:261918), fit to 1D simulations of a
+    linear-softening bar: s / L0 = 4.5 / (1 + 4.5 rate^(2/3))."""
+    return 4.5 / (1 + 4.5 * np.asarray(rate, dtype=float) ** (2 / 3))
+
+
 # Single-degree-of-freedom model of a one-way wall strip (Biggs 1964, "Introduction to
 # Structural Dynamics", ch. 5, table 5.1; UFC 3-340-02 ch. 3; PHYSICS.md §7). Everything is
 # per metre of wall width: loads and resistances are total forces on the strip (N/m), the

@@ -45,6 +45,8 @@ def _plot_load(case, out, comm):
     """Draw the case's p(t) over [0, time.end] and print the path, peak, impulse, duration."""
     from dolfrag import loads
     from dolfrag.post.figures import signal_png
+    if case.load.kind != "pressure":
+        raise CaseError(f"load.kind = {case.load.kind!r}: no pressure signal to plot (only load.kind = 'pressure')")
     peak, peak_time, impulse, duration = loads.signal_summary(case.load)
     path = Path(out or f"results/{case.name}/load.png")
     if comm.rank == 0:

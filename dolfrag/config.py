@@ -62,6 +62,7 @@ GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
 LAWS = ("elastic", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "table")
+LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
@@ -195,6 +196,7 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
 # ---------------------------------------------------------------- sections
 _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several fields
 _IMPORTED = ("kind", "file")
+_PRESSURE = ("kind", "pressure")
 _SHAPED = ("signal", "triangular", "friedlander", "deflagration", "detonation")
 _RISING = ("signal", "triangular", "deflagration")
 _OSCILLATING = ("signal", "deflagration", "detonation")
@@ -282,7 +284,12 @@ class Interface:
 @dataclass(frozen=True)
 class Load:
     """[load]: pressure p(t) on one boundary, positive pushes into the body (the formulas:
-    dolfrag/loads.py, docs/loads.md).
+    dolfrag/loads.py, docs/loads.md), or a uniform stretch along x.
+
+    kind "stretch" (the expanding bar, PHYSICS.md §4): the body starts unstressed with
+    the velocity v_x = strain_rate (x - x_mid), v_y = 0 (x_mid: the middle of its x extent
+    L), and the x velocity of the boundaries ``left`` and ``right`` is held at
+    -/+ strain_rate L / 2 from t = 0 (imex, nonsmooth interface laws).
 
     triangular: linear 0 -> peak over [0, rise], then linear back to 0 at `duration`.
     friedlander: peak (1 - t/duration) exp(-alpha t/duration), positive phase only.
@@ -295,8 +302,10 @@ class Load:
     Spatial profile: uniform, or region_factor x p(t) on the facets whose midpoint is in the
     box [region_min, region_max] (give all three keys or none).
     """
-    boundary: str = _f("str")                                        # a geometry boundary
-    signal: str = _f("str", "triangular", choices=SIGNALS)           # one of SIGNALS
+    kind: str = _f("str", "pressure", choices=LOAD_KINDS)            # one of LOAD_KINDS
+    strain_rate: float | None = _f("float", bounds="> 0", unit="1/s", when=("kind", "stretch"))
+    boundary: str | None = _f("str", when=_PRESSURE)                 # a geometry boundary
+    signal: str | None = _f("str", "triangular", choices=SIGNALS, when=_PRESSURE)  # one of SIGNALS
     peak: float | None = _f("float", bounds=">= 0", unit="Pa", when=_SHAPED)      # >= 0
     rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING)   # >= 0
     duration: float | None = _f("float", bounds="> 0", unit="s", when=_SHAPED)    # >= rise
@@ -315,9 +324,9 @@ class Load:
     local_time: float | None = _f("float", None, bounds=">= 0", unit="s", when=_DETONATION)
     local_width: float | None = _f("float", None, bounds="> 0", unit="s", when=_DETONATION)
     file: Path | None = _f("path", when=("signal", "table"))         # absolute Path of the CSV
-    region_min: tuple[float, ...] | None = _f("point", None, unit="m")   # lower corner of the box
-    region_max: tuple[float, ...] | None = _f("point", None, unit="m")   # upper corner
-    region_factor: float | None = _f("float", None, bounds=">= 0")       # p inside / p outside
+    region_min: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # lower corner of the box
+    region_max: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # upper corner
+    region_factor: float | None = _f("float", None, bounds=">= 0", when=_PRESSURE)      # p inside / p outside
     # parsed from `file` (table only; left out of ==, which compares `file`):
     t: np.ndarray | None = field(default=None, compare=False)  # [s] increasing, read-only f8
     p: np.ndarray | None = field(default=None, compare=False)  # [Pa], read-only float64
@@ -473,7 +482,10 @@ def _check(case: Case) -> None:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")
     _check_load(load, case.geometry)
-    named = {"load.boundary": load.boundary, "supports.rollers": list(sup.rollers),
+    if load.kind == "stretch":
+        _check_stretch(case)
+    named = {**({"load.boundary": load.boundary} if load.kind == "pressure" else {}),
+             "supports.rollers": list(sup.rollers),
              "supports.clamped": list(sup.clamped), "supports.simple": list(sup.simple),
              "rebar.faces": list(case.rebar.faces)}
     for key, value in named.items():
@@ -502,6 +514,22 @@ def _check(case: Case) -> None:
     if load.boundary in sup.clamped:
         raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
                         "load.boundary (the loaded boundary may not be clamped)")
+
+
+STRETCHED = ("left", "right")  # the boundaries a stretch pulls apart along x
+
+
+def _check_stretch(case: Case) -> None:
+    """What a stretch needs: the imex star solve (Imex.impose holds the end velocities as
+    supports) with a nonsmooth law. (Rectangles and boxes have the STRETCHED boundaries;
+    the runner checks an imported mesh.)"""
+    where = "load.kind = 'stretch' with"
+    if case.time.scheme != "imex":
+        raise CaseError(f"{where} time.scheme = {case.time.scheme!r}: not available (the imposed end "
+                        "velocities need the imex star solve); use time.scheme = 'imex'")
+    if case.interface.law == "elastic":
+        raise CaseError(f"{where} interface.law = 'elastic': not available (its inverted star blocks "
+                        "cannot move prescribed components); use a nonsmooth law, e.g. 'linear_softening'")
 
 
 def _check_load(load: Load, geometry: Geometry) -> None:

@@ -3,6 +3,7 @@
 Everything the user can get wrong is checked before ``out`` is created, so bad
 input leaves no half-written directory behind.
 """
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -15,7 +16,7 @@ from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
-from dolfrag.post import shpb, wall
+from dolfrag.post import expanding, shpb, wall
 from dolfrag.post.figures import broken_mesh_png, deflection_png, exploded, signal_png, wave_png
 from dolfrag.post.fragments import breaks_by_time, fragments
 from dolfrag.post.output import RunOutput, dof_damage
@@ -23,6 +24,7 @@ from dolfrag.progress import Progress
 from dolfrag.solver.imex import ElasticSprings, Imex
 from dolfrag.solver.semismooth import ConvergenceError, StarNewton, step_stiffness
 from dolfrag.solver.theta import Theta, accuracy_time_step
+from dolfrag.stretch import Stretch
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
                   "D_numerical_J", "D_rebar_plastic_J", "W_external_J", "balance_error_J"]
@@ -58,9 +60,16 @@ def interface_step(interface, E, size, stars, jump, m, h):
 
 
 def setup(case, comm):
-    """Mesh, space, operators and the integrator for ``case``. Collective."""
+    """Mesh, space, operators and the integrator for ``case``: (domain, space, links,
+    integrator, n_steps, dt_crit). Collective. A stretch is started (initial velocity,
+    ends held), but the work of its ends is booked only by ``run``."""
+    return _setup(case, comm)[:6]
+
+
+def _setup(case, comm):
+    """setup's tuple, plus the case's Stretch (None for a pressure load)."""
     domain = mesh.build(case.geometry, case.mesh.size, comm)
-    named = [("load.boundary", case.load.boundary)] + [
+    named = ([("load.boundary", case.load.boundary)] if case.load.kind == "pressure" else []) + [
         (f"supports.{kind}", name) for kind in ("rollers", "clamped", "simple")
         for name in getattr(case.supports, kind)]
     for key, name in named:
@@ -78,7 +87,11 @@ def setup(case, comm):
         # mass, stays an upper bound
         bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + bars.stiffness_bound(bulk_ops.m.x.array))
     links = link_table.build(space)
-    stars = Stars(space, links, supports.constrained_components(space, domain, case.supports))
+    held = supports.constrained_components(space, domain, case.supports)
+    stretch = Stretch(space, domain, case.load.strain_rate) if case.load.kind == "stretch" else None
+    if stretch is not None:  # its ends are supports whose velocity is prescribed
+        held = np.union1d(held, stretch.held)
+    stars = Stars(space, links, held)
     time = case.time
     if time.scheme == "theta":  # unconditionally stable: the step follows accuracy, not dt_crit
         h = time.dt or accuracy_time_step(case.load, time.end)
@@ -87,15 +100,21 @@ def setup(case, comm):
     n_steps = math.ceil(time.end / h)
     h = time.end / n_steps
     jump = Jump(space, links)
-    load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
+    if stretch is None:
+        load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
+        pressure = loads.signal(case.load)
+    else:
+        load, pressure = compat.Function(space.V), np.zeros_like  # no pressure: p(t) = 0
     if time.scheme == "theta":
         model = interface_model(case.interface, case.material.E, case.mesh.size, len(links), h)
-        integrator = Theta(space, bulk_ops, jump, model, load, loads.signal(case.load), h, time.theta,
+        integrator = Theta(space, bulk_ops, jump, model, load, pressure, h, time.theta,
                            stars.constrained, rebars=bars)
     else:
         step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
-        integrator = Imex(space, bulk_ops, jump, step, load, loads.signal(case.load), h, rebars=bars)
-    return domain, space, links, integrator, n_steps, bulk_ops.dt_crit
+        integrator = Imex(space, bulk_ops, jump, step, load, pressure, h, rebars=bars)
+    if stretch is not None:
+        stretch.start(integrator, stars.comps)
+    return domain, space, links, integrator, n_steps, bulk_ops.dt_crit, stretch
 
 
 def _probes(space, domain):
@@ -165,7 +184,7 @@ def run(case, out, quiet=False, comm=None):
     if not isinstance(case, Case):
         case = load_case(case)
     wall_start = time.perf_counter()
-    domain, space, links, integ, n_steps, dt_crit = setup(case, comm)
+    domain, space, links, integ, n_steps, dt_crit, stretch = _setup(case, comm)
     probes = _probes(space, domain)
     section = _wall_section(case)
     midspan = _midspan(space, section[0], case.mesh.size) if section else None
@@ -209,6 +228,11 @@ def run(case, out, quiet=False, comm=None):
             t_n = integ.t
             try:
                 energies = integ.step(energies=k % case.output.every == 0 or k == n_steps)
+                if stretch is not None:
+                    stretch.book(integ)
+                    if energies is not None:  # E_{-1/2} and the ends' work are supplied too
+                        energies = dataclasses.replace(
+                            energies, external_work=energies.external_work + stretch.supplied(comm))
                 if integ.model.can_break:
                     break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
                     _check_converged(integ, comm)
@@ -281,6 +305,10 @@ def run(case, out, quiet=False, comm=None):
                                     span=span, thickness=thickness, free_face=free_face, h=case.mesh.size)
         summary["wall"] = comm.bcast(block, root=0)
         summary["wall"]["estimates"], sdof_history = _wall_estimates(case, integ.model.C_N)
+    if stretch is not None:
+        reference = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, None, break_time)
+        summary["expanding_bar"] = expanding.block(reference, stretch.length, stretch.rate, case.material,
+                                                   case.interface)
     if free_end is not None:
         summary["breaks"] = breaks_by_time(frags, free_end)
         measured_at, at_measure = measured.get(shpb.MEASURE_TIME, (integ.t, frags))  # shorter run: the end
@@ -299,8 +327,9 @@ def run(case, out, quiet=False, comm=None):
                              f"t = {integ.t * 1e6:.1f} us")
         dof_damage(space, links, integ.model.damage(), damage)
         broken_mesh_png(space, integ.u, damage.x.array, figures / "damage.png", "damage 1 - beta (-)")
-        signal_png(loads.signal(case.load), case.time.end, figures / "load.png", comm,
-                   f"load on '{case.load.boundary}' ({case.name})")
+        if stretch is None:
+            signal_png(loads.signal(case.load), case.time.end, figures / "load.png", comm,
+                       f"load on '{case.load.boundary}' ({case.name})")
         if section:
             broken_mesh_png(space, integ.u, v[:, 1], figures / "velocity_y.png", "velocity v_y (m/s)", scale=1.0,
                             cell_offset=exploded(frags, fragment_of_cell, EXPLODE),

@@ -153,3 +153,26 @@ def test_clamped_wall_resistance_matches_physics_md():
     # R_m = 8 (M_ps + M_pm) / L = 16 M_p ~ 2.7 bar on 1 m (from the rounded 17 kN m/m)
     assert analytic.bending_resistance(17e3, 17e3, 1.0, "clamped") == pytest.approx(2.7e5, abs=0.05e5)
     assert analytic.bending_resistance(17e3, 17e3, 1.0, "simple") == pytest.approx(1.36e5)
+
+
+@pytest.mark.parametrize("rate, zmr, grady, gc", [(0.1, 2.28, 13.4, 1.99), (1, 0.818, 2.88, 1.64),
+                                                  (10, 0.206, 0.621, 0.557), (100, 0.0459, 0.134, 0.131),
+                                                  (1000, 0.0100, 0.0288, 0.0287)])
+def test_fragment_sizes_match_the_table_of_physics_md_4(rate, zmr, grady, gc):
+    # PHYSICS.md §4's table, printed to 3 significant digits: within half a unit of the last
+    for size, printed in ((analytic.zhou_molinari_ramesh_size, zmr), (analytic.grady_size, grady),
+                          (analytic.glenn_chudnovsky_size, gc)):
+        assert size(rate) == pytest.approx(printed, rel=5e-3, abs=5e-5)
+
+
+def test_fragmentation_scales_of_the_zmr_material_match_physics_md_4():
+    # PHYSICS.md §4: E = 275 GPa, rho = 2750, sigma_c = 300 MPa, G_c = 100 N/m ->
+    # L0 = 0.306 mm, eps_dot_0 = 3.57e4 1/s (3 digits)
+    E, rho, sigma_c, G_c = 275e9, 2750.0, 300e6, 100.0
+    assert analytic.fragmentation_length(E, G_c, sigma_c) == pytest.approx(0.306e-3, rel=2e-3)
+    assert analytic.fragmentation_strain_rate(E, rho, G_c, sigma_c) == pytest.approx(3.57e4, rel=2e-3)
+    # Grady's dimensional form (24 G_c / (rho eps_dot^2))^(1/3) is s / L0 times L0
+    rate = 1e5
+    grady = analytic.grady_size(rate / analytic.fragmentation_strain_rate(E, rho, G_c, sigma_c))
+    assert grady * analytic.fragmentation_length(E, G_c, sigma_c) == pytest.approx(
+        np.cbrt(24 * G_c / (rho * rate**2)), rel=1e-12)

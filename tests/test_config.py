@@ -21,6 +21,9 @@ BASE = {
 TABLE = {"load.signal": "table", "load.peak": DEL, "load.rise": DEL, "load.duration": DEL,
          "load.file": "p.csv"}
 FILE = {"geometry.kind": "file", "geometry.length": DEL, "geometry.width": DEL}
+STRETCH = {"load.kind": "stretch", "load.strain_rate": 600.0, "load.boundary": DEL, "load.peak": DEL,
+           "load.rise": DEL, "load.duration": DEL, "interface.law": "linear_softening",
+           "interface.sigma_c": 2e7, "interface.G_c": 100.0}
 
 
 def _value(v):
@@ -93,6 +96,14 @@ def test_box_materials_and_rise_default(tmp_path):
     assert case.materials["steel"].E == 2e11 and case.materials["steel"].hypothesis == "plane_stress"
 
 
+def test_stretch_load_needs_no_boundary_and_keeps_no_pressure_keys(tmp_path):
+    case = load_case(write_case(tmp_path, STRETCH))
+    load = case.load
+    assert load.kind == "stretch" and load.strain_rate == 600.0
+    assert load.boundary is None and load.signal is None and load.peak is None and load.region is None
+    assert load_case(write_case(tmp_path)).load.kind == "pressure"
+
+
 def test_table_load_relative_to_case_dir(tmp_path, monkeypatch):
     path = write_case(tmp_path, TABLE, csv="t,p\n0,0\n1e-5, 2e6\n\n3e-5,0\n")
     monkeypatch.chdir(tmp_path.parent)
@@ -142,6 +153,16 @@ def test_table_load_relative_to_case_dir(tmp_path, monkeypatch):
     (TABLE, "0,0\n1e-5,1\n1e-5,0\n", "load.file * line 3"),
     (TABLE, "0,0,0\n1,1,1\n", "load.file * line 2"),
     (TABLE, "t,p\n0,0\n", "load.file"),
+    ({**STRETCH, "load.strain_rate": 0.0}, None, "load.strain_rate"),
+    ({**STRETCH, "load.strain_rate": DEL}, None, "load.strain_rate"),
+    ({**STRETCH, "load.boundary": "left"}, None, "load.boundary * load.kind is 'pressure'"),
+    ({**STRETCH, "load.region_factor": 2.0}, None, "load.region_factor"),
+    ({**STRETCH, "load.kind": "pull"}, None, "load.kind"),
+    ({"load.strain_rate": 600.0}, None, "load.strain_rate * load.kind is 'stretch'"),
+    ({**STRETCH, "interface.law": "elastic", "interface.sigma_c": DEL, "interface.G_c": DEL}, None,
+     "load.kind = 'stretch' * interface.law = 'elastic'"),
+    ({**STRETCH, "interface.law": "rccm", "interface.G_c": DEL, "time.scheme": "theta"}, None,
+     "load.kind = 'stretch' * time.scheme = 'theta'"),
     ({"output.fragments_at": [1e-5, -1.0]}, None, "output.fragments_at"),
     ({"output.fragments_at": 1e-5}, None, "output.fragments_at"),
     ({"output.fragments_at": [True]}, None, "output.fragments_at"),
