@@ -236,6 +236,7 @@ def run(case, out, quiet=False, comm=None):
                 if integ.model.can_break:
                     break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
                     _check_converged(integ, comm)
+                    integ.timer.lap("communication")
             except ConvergenceError:
                 output.failure(lambda vtk: write_fields(integ.t, vtk))  # the state, for a look
                 raise
@@ -266,6 +267,8 @@ def run(case, out, quiet=False, comm=None):
                     summary.setdefault("fragments_at", []).append(
                         {"requested_time_s": at, "time_s": integ.t, **measured[at][1].to_dict()})
             progress.update(k)
+            integ.timer.lap("output")
+        summary["timings_s"] = integ.timer.summary(comm)
         summary["status"] = "completed"
     except BaseException as err:
         summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"

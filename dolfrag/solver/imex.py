@@ -27,6 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import compat
+from dolfrag.timing import PhaseTimer
 from dolfrag.interface import laws
 
 
@@ -100,6 +101,7 @@ class Imex:
         self.m = bulk.m.x.array
         self.t, self.n = 0.0, 0
         self.work = 0.0
+        self.timer = step.timer = PhaseTimer()  # the star solver books its collective too
         self._g = jump(self.u.x.array)
         self._g_before = self._g.copy()  # g_{n-1}
         self._imposed = None
@@ -128,7 +130,8 @@ class Imex:
         """Advance from t_n to t_{n+1}. With ``energies``, return the Energies at
         t_{n+1/2} (collective), else None."""
         h, u, v, f, dv = self.h, self.u.x.array, self.v.x.array, self.f.x.array, self.dv.x.array
-        own = self.owned
+        own, timer = self.owned, self.timer
+        timer.start()
         Ku = self.bulk.K_cells @ u[own]
         p = float(self.pressure(self.t))
         np.negative(Ku, out=f[own])
@@ -136,7 +139,9 @@ class Imex:
             np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
+        timer.lap("bulk")
         compat.scatter_forward(self.f)
+        timer.lap("communication")
 
         dv[:] = 0.0
         if self._imposed is not None:
@@ -144,7 +149,9 @@ class Imex:
             dv[comps] = velocity(self.t + h / 2) - v[comps]
         self.interface.solve(f, self._g, v, dv)
         mine = dv[self.star_comps]
+        timer.lap("interface")
         compat.scatter_reverse_add(self.dv)
+        timer.lap("communication")
         dv[self.star_comps] = mine
 
         v_old_loaded = v[own][self.loaded]
@@ -153,16 +160,21 @@ class Imex:
         ghosts = self.star_ghosts
         v[ghosts] += dv[ghosts]
         u[ghosts] += h * v[ghosts]
+        timer.lap("update")
         if self.rebars is not None:
             compat.scatter_forward(self.u)
+            timer.lap("communication")
         self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
         g_old, self._g = self._g, self.jump(u)
         self.interface.account(self._g_before, self._g)
         self._g_before = g_old
         self.t += h
         self.n += 1
+        timer.lap("interface")
         if energies:
-            return self._energies(Ku, (g_old + self._g) / 2)
+            result = self._energies(Ku, (g_old + self._g) / 2)
+            timer.lap("diagnostics")
+            return result
         return None
 
     def _energies(self, Ku, g_mid):

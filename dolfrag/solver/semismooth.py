@@ -35,6 +35,7 @@ from mpi4py import MPI
 
 from dolfrag.interface.contact import contact_friction_residual, link_blocks, projection_jacobian
 from dolfrag.solver.active_set import SLIP, ActiveSets, pattern_code
+from dolfrag.timing import PhaseTimer
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -103,6 +104,7 @@ class StarNewton:
         links = jump.links
         self.stars, self.jump, self.model, self.h = stars, jump, model, h
         self.max_iterations, self.rtol = max_iterations, rtol
+        self.timer = PhaseTimer()  # the integrator's, once it owns this solver
         d = stars.gdim
         frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
         self._frame = frame
@@ -157,7 +159,9 @@ class StarNewton:
         mine = np.array([self.h * force, max(np.abs(self.r).max(initial=0.0), np.abs(self._shift).max(initial=0.0),
                                              force / max(self.jump.links.weight.max(initial=0.0), 1e-300))])
         largest = np.empty(2)
+        self.timer.lap("interface")
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
+        self.timer.lap("communication")
         self._floor_m, self._floor_c = FLOOR * largest
         self.iterations = self.unconverged = 0
         self.residual = 0.0

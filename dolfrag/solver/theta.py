@@ -57,6 +57,7 @@ from petsc4py import PETSc
 from dolfrag import compat, loads
 from dolfrag.interface import laws, models
 from dolfrag.interface.contact import contact_friction_projection, link_blocks
+from dolfrag.timing import PhaseTimer
 from dolfrag.solver import semismooth
 from dolfrag.solver.imex import Energies
 from dolfrag.solver.semismooth import CYCLE, REGULARISATION, STALL
@@ -130,6 +131,7 @@ class Theta:
         self.pressure, self.h, self.theta = pressure, h, theta
         self.max_cuts = max_cuts
         self.comm = space.mesh.comm
+        self.timer = PhaseTimer()
         self.u, self.v, self.x, self.force = (compat.Function(space.V) for _ in range(4))
         self.u.name, self.v.name = "displacement", "velocity"
         d = self.d = space.gdim
@@ -265,9 +267,15 @@ class Theta:
         ``energies``, return the Energies at t_{n+1} (collective), else None."""
         self.interface.iterations = self.interface.cuts = 0
         self.interface.residual = 0.0
+        self.timer.start()
         self._advance(self.h, 0)
         self.n += 1
-        return self._energies() if energies else None
+        self.timer.lap("implicit")
+        if not energies:
+            return None
+        result = self._energies()
+        self.timer.lap("diagnostics")
+        return result
 
     def _advance(self, h, depth):
         try:
