@@ -45,7 +45,8 @@ def affine_constant(code, D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesio
     (Pa/m); BR (n, L d, q) link-frame jump operator; w (n, L) link weights (m or m^2);
     rho (n, L) augmentation (Pa/m); rhs (n, q) h f (N s); fixed (n, q) prescribed
     components; g_n, dg (n, L, d) m; mu (-), shift, cohesion_T (Pa) (n, L); h (s).
-    Returns (n, q + L d)."""
+    Returns (n, q + L d): momentum rows, then the normal rows of every link, then each
+    tangential component of every link."""
     n, q = rhs.shape
     t0 = np.einsum("slij,slj->sli", D, g_n) * w[..., None]
     c_m = h * np.einsum("spq,sp->sq", BR, t0.reshape(n, -1)) - rhs
@@ -57,7 +58,8 @@ def affine_constant(code, D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesio
     e = np.where((code & NEGATIVE) > 0, -1.0, 1.0)
     c_T = np.where(stick[..., None], rho[..., None] * dg[..., 1:],
                    np.where(slip[..., None], -(e * radius0)[..., None], 0.0))
-    return np.concatenate([c_m, np.concatenate([c_N[..., None], c_T], axis=-1).reshape(n, -1)], axis=1)
+    # reactions component-major, as the unknowns of semismooth._jacobian
+    return np.concatenate([c_m, c_N, c_T.transpose(0, 2, 1).reshape(n, -1)], axis=1)
 
 
 class ActiveSets:
