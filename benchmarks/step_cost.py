@@ -4,6 +4,10 @@
                                    [--scheme imex|theta] [--h-factor 1]
     mpirun -n 2 python benchmarks/step_cost.py
 
+Each imex row also gives the bytes the step must stream at least once per element (its
+operators, link table and state): divided by the printed bandwidth, the time a step could
+not go below.
+
 --scheme theta times the Moreau-Jean step (solver/theta.py, theta = 1/2) at h-factor times
 the imex step, after 5 warm-up steps (the first include MUMPS' symbolic analysis), and
 reports its mean Newton iterations per step.
@@ -57,10 +61,13 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0):
     per_step = timed(integ.step, steps, comm)
     u = integ.u.x.array
     rss = peak_memory(comm)
+    floor = comm.allreduce(streamed_bytes(integ), op=MPI.MAX) / (n_cells / comm.size)
+    streamed = f"streams >= {floor:.0f} B/elem-step"
     if law != "elastic":
         broken = comm.allreduce(int(integ.model.broken().sum()))
         iterations = comm.allreduce(integ.interface.iterations, op=MPI.MAX)
-        return n_cells, per_step, f"star Newton: {iterations} iterations (last step), {broken} broken links", rss
+        return n_cells, per_step, (f"star Newton: {iterations} iterations (last step), {broken} broken links, "
+                                   f"{streamed}"), rss
     parts = {
         "bulk K u": lambda: integ.bulk.K_cells @ u[integ.owned],
         "ghost update": lambda: integ.f.x.scatter_forward(),
@@ -68,7 +75,39 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0):
         "star solve": lambda: integ.interface.stars.solve(integ.f.x.array, integ.dv.x.array),
     }
     breakdown = ", ".join(f"{k} {1e9 * timed(fn, steps, comm) / n_cells:.0f}" for k, fn in parts.items())
-    return n_cells, per_step, breakdown, rss
+    return n_cells, per_step, f"{breakdown}; {streamed}", rss
+
+
+def streamed_bytes(integ):
+    """Bytes an imex step must read at least once (its operators, link table and state
+    vectors), on this rank: the memory traffic a step could not go below. Numpy's
+    temporaries come on top."""
+    arrays = [integ.bulk.K_cells.data, integ.bulk.K_cells.indices, integ.m, integ.u.x.array, integ.v.x.array,
+              integ.f.x.array, integ.dv.x.array]
+    jump = integ.jump
+    arrays += [jump.B.data, jump.B.indices, jump.BT.data, jump.BT.indices, jump.links.normal,
+               jump.links.tangents, jump.links.weight, integ.star_comps]
+    solver = integ.interface
+    for group in solver.stars.groups:
+        arrays += [a for a in (group.inv, group.links, group.valid) if a is not None]
+    for data, sets in zip(getattr(solver, "_data", ()), getattr(solver, "_sets", ())):
+        arrays += [*data, sets.inverse, sets.D, sets.code]
+    return sum(a.nbytes for a in arrays)
+
+
+def bandwidth(megabytes=128):
+    """Memory bandwidth (bytes/s) of a numpy copy on this machine: read + write of a
+    ``megabytes`` array, best of 5."""
+    a = np.ones(megabytes * 2**20 // 8)
+    b = np.empty_like(a)
+    best = min(timed_once(lambda: np.copyto(b, a)) for _ in range(5))
+    return 2 * a.nbytes / best
+
+
+def timed_once(fn):
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
 
 
 def peak_memory(comm):
@@ -110,6 +149,10 @@ def main():
         n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law, args.scheme, args.h_factor)
         if comm.rank == 0:
             print(f"{n_cells:8d} {1e3 * per_step:8.2f} {1e9 * per_step / n_cells:13.0f} {rss:13.0f}  {breakdown}")
+    # after the runs, so that its array is not in their peak memory; every rank at once, as in a run
+    speed = bandwidth()
+    if comm.rank == 0:
+        print(f"memory bandwidth (numpy copy, read + write, per rank with all ranks copying): {speed / 1e9:.1f} GB/s")
 
 
 if __name__ == "__main__":
