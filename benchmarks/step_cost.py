@@ -71,8 +71,7 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0):
     parts = {
         "bulk K u": lambda: integ.bulk.K_cells @ u[integ.owned],
         "ghost update": lambda: integ.f.x.scatter_forward(),
-        "interface force": lambda: integ.jump.force(*integ.jump.local(integ.jump(u))[:2]),
-        "star solve": lambda: integ.interface.stars.solve(integ.f.x.array, integ.dv.x.array),
+        "star step": lambda: integ.interface.solve(integ.f.x.array, u, None, None, integ.dv.x.array),
     }
     breakdown = ", ".join(f"{k} {1e9 * timed(fn, steps, comm) / n_cells:.0f}" for k, fn in parts.items())
     return n_cells, per_step, f"{breakdown}; {streamed}", rss

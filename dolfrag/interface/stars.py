@@ -89,13 +89,11 @@ class Stars:
         """(n_s, k*gdim) bool: the group's prescribed components."""
         return self.constrained[grp.comps]
 
-    def factorise(self, m, blocks, c):
-        """Invert diag(m) + c * sum over links of [[D, -D], [-D, D]] for every star.
-
-        m: flat lumped mass (kg) of every local dof component; blocks (n_links, gdim, gdim)
-        link stiffnesses D (N/m); c (s^2) their factor in the step matrix.
-        """
+    def assemble(self, blocks, c=1.0):
+        """Per group, the star blocks (n_s, k*gdim, k*gdim) of c * sum over links of
+        [[D, -D], [-D, D]]: blocks (n_links, gdim, gdim) link stiffnesses D (N/m)."""
         d = self.gdim
+        out = []
         for g, grp in enumerate(self.groups):
             n_s, q = grp.comps.shape
             k = q // d
@@ -107,7 +105,17 @@ class Stars:
             np.add.at(A, (r, b, slice(None), b), D)
             np.add.at(A, (r, a, slice(None), b), -D)
             np.add.at(A, (r, b, slice(None), a), -D)
-            A = A.reshape(n_s, q, q)
+            out.append(A.reshape(n_s, q, q))
+        return out
+
+    def factorise(self, m, blocks, c):
+        """Invert diag(m) + c * sum over links of [[D, -D], [-D, D]] for every star.
+
+        m: flat lumped mass (kg) of every local dof component; blocks (n_links, gdim, gdim)
+        link stiffnesses D (N/m); c (s^2) their factor in the step matrix.
+        """
+        for grp, A in zip(self.groups, self.assemble(blocks, c)):
+            q = A.shape[1]
             A[:, np.arange(q), np.arange(q)] += m[grp.comps]
             fixed = self.constrained[grp.comps]
             A[fixed[:, :, None] | fixed[:, None, :]] = 0.0
@@ -115,8 +123,3 @@ class Stars:
             inv = np.linalg.inv(A)
             inv[np.broadcast_to(fixed[:, None, :], inv.shape)] = 0.0  # prescribed: ignore rhs, give 0
             grp.inv = inv
-
-    def solve(self, rhs, out):
-        """out[star comps] = star blocks^-1 rhs[star comps], for every owned star."""
-        for grp in self.groups:
-            out[grp.comps] = np.matmul(grp.inv, rhs[grp.comps][:, :, None])[:, :, 0]

@@ -139,11 +139,14 @@ class StarNewton:
             self._data.append((BR.reshape(n_s, L * d, q), weight, m_star, rho, fixed, frozen))
             self._sets.append(ActiveSets(n_s, L, d, q + L * d))
 
-    def solve(self, f, g_n, v, out):
+    needs_jumps = True  # every step: the contact work of each step is booked from them
+
+    def solve(self, f, u, g_n, v, out):
         """Velocity increments of every owned star into out[star comps].
 
-        f: flat f_ext - K u_n on local components (ghosts updated), N;
-        g_n (n_links, gdim): link jumps of u_n (m), global frame; v: flat v_{n-1/2} (m/s);
+        f: flat f_ext - K u_n on local components (ghosts updated), N; u: flat u_n (m, not
+        used: the jumps carry it); g_n (n_links, gdim): link jumps of u_n (m), global frame;
+        v: flat v_{n-1/2} (m/s);
         out: flat, holding on entry the increments of the prescribed components (m/s).
         Updates the model's state (damage), the contact reactions and the reactions of
         the prescribed components (``reaction``, N).
