@@ -439,12 +439,14 @@ class StarNewton:
         J[:, q:, :q] = h * np.einsum("slij,sljq->silq", Jg, BR4).reshape(n, L * d, q)
         at = q + np.arange(d)[None, :] * L + np.arange(L)[:, None]  # (L, d): position of r_l,i
         J[:, at[:, :, None], at[:, None, :]] = Jr + REGULARISATION * stick[..., None, None] * np.eye(d)
-        frozen_rows = np.tile(frozen, (1, d))
-        J[:, q:, :][frozen_rows] = 0.0
-        J[:, q + np.arange(L * d), q + np.arange(L * d)] += frozen_rows
-        J[:, :q, :][fixed] = 0.0
-        J[:, :, :q] *= ~fixed[:, None, :]
-        J[:, np.arange(q), np.arange(q)] += fixed
+        if frozen.any():  # (each a full pass over J: skipped where none, the common case)
+            frozen_rows = np.tile(frozen, (1, d))
+            J[:, q:, :][frozen_rows] = 0.0
+            J[:, q + np.arange(L * d), q + np.arange(L * d)] += frozen_rows
+        if fixed.any():
+            J[:, :q, :][fixed] = 0.0
+            J[:, :, :q] *= ~fixed[:, None, :]
+            J[:, np.arange(q), np.arange(q)] += fixed
         return J
 
 
