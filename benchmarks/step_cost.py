@@ -89,6 +89,7 @@ def streamed_bytes(integ):
     solver = integ.interface
     for group in solver.stars.groups:
         arrays += [a for a in (group.inv, group.links, group.valid) if a is not None]
+    arrays += getattr(solver, "_step", [])
     for data, sets in zip(getattr(solver, "_data", ()), getattr(solver, "_sets", ())):
         arrays += [*data, sets.inverse, sets.D, sets.code]
     return sum(a.nbytes for a in arrays)
