@@ -301,3 +301,57 @@ def rigid_plastic_impulsive_deflection(impulse, K_LM, M, R_m):
     y_max = impulse^2 / (2 K_LM M R_m). impulse N s/m, M kg/m, R_m N/m; the same formula holds
     per square metre (Pa s, kg/m^2, Pa)."""
     return impulse**2 / (2 * K_LM * M * R_m)
+
+
+# Thin (Kirchhoff) rectangular plates under a uniform pressure q: sides a (x) and b (y), m;
+# flexural rigidity D = E t^3 / (12 (1 - nu^2)), N m. Timoshenko & Woinowsky-Krieger (1959),
+# "Theory of Plates and Shells", §30 (Navier, simply supported, table 8: w = 0.00406 q a^4 / D
+# for a square) and §44 (clamped, table 35: 0.00126 q a^4 / D).
+
+def plate_rigidity(E, thickness, nu):
+    """Flexural rigidity D = E t^3 / (12 (1 - nu^2)) (N m) of a plate t (m) thick; E Pa."""
+    return E * thickness**3 / (12 * (1 - nu**2))
+
+
+def simply_supported_plate_deflection(q, a, b, D, terms=201):
+    """Centre deflection (m) of a simply supported a x b plate (m) under q (Pa): Navier's
+    series 16 q / (pi^6 D) sum over odd m, n of (-1)^((m+n)/2 - 1) / (m n (m^2/a^2 +
+    n^2/b^2)^2). ``terms`` odd indices per axis; the error falls as terms^-5."""
+    k = np.arange(1, 2 * terms, 2)
+    m, n = np.meshgrid(k, k, indexing="ij")
+    sign = (-1.0) ** ((m + n) // 2 - 1)
+    return float(16 * q / (np.pi**6 * D) * np.sum(sign / (m * n * (m**2 / a**2 + n**2 / b**2)**2)))
+
+
+def clamped_plate_deflection(q, a, b, D, terms=5):
+    """Centre deflection (m) of an a x b plate (m) clamped on its four edges under q (Pa),
+    by Ritz on w = sum c_ij phi_i(2x/a) phi_j(2y/b), phi_i(s) = (1 - s^2)^2 s^(2i), i <
+    ``terms`` (clamped on s = +-1, even like the load). With w = dw/dn = 0 on the edges the
+    twist term of the energy integrates to zero, so the energy is D/2 int (lap w)^2 - int q w
+    and the answer does not depend on nu. Converged to 5 digits from 3 terms on a square
+    (0.0012653 q a^4 / D; one term gives the textbook 0.00133); more than ~6 terms gain
+    nothing in float64 (the monomial basis is ill-conditioned)."""
+    s = np.polynomial.Polynomial([0.0, 1.0])
+    phi = [(1 - s**2)**2 * s**(2 * i) for i in range(terms)]
+
+    def integral(p):
+        antiderivative = p.integ()
+        return antiderivative(1.0) - antiderivative(-1.0)
+
+    gram = [np.array([[integral(p.deriv(k) * r.deriv(k)) for r in phi] for p in phi]) for k in range(3)]
+    mean = np.array([integral(p) for p in phi])
+    # on s in [-1, 1]: d/dx = (2/a) d/ds, dA = (a b / 4) ds dt; int w_xx w_yy = int w_xy^2
+    K = D * a * b / 4 * ((2 / a)**4 * np.kron(gram[2], gram[0]) + (2 / b)**4 * np.kron(gram[0], gram[2])
+                         + 2 * (2 / a)**2 * (2 / b)**2 * np.kron(gram[1], gram[1]))
+    c = np.linalg.solve(K, q * a * b / 4 * np.kron(mean, mean))
+    return float(c[0])  # phi_i(0) = 1 for i = 0, else 0
+
+
+def plate_deflection(q, a, b, D, supports):
+    """Centre deflection (m) of a thin rectangular plate, ``supports`` "clamped" or "simple"
+    on all four edges (the two functions above). Raises ValueError for other supports."""
+    if supports == "clamped":
+        return clamped_plate_deflection(q, a, b, D)
+    if supports == "simple":
+        return simply_supported_plate_deflection(q, a, b, D)
+    raise ValueError(f"supports must be 'clamped' or 'simple', got {supports!r}")

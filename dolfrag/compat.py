@@ -36,6 +36,12 @@ def adjacency_array(adj, width):
     return adj.array.reshape(-1, width)
 
 
+def gmsh_nodes(model):
+    """(n, 3) coordinates (m) of the gmsh model's nodes, in the order the mesh input uses
+    (row i = node tag i + 1): the points mesh_from_gmsh hands to the partitioner's cells."""
+    return gmshio.extract_geometry(model)
+
+
 def mesh_from_gmsh(comm, model, gdim, partitioner):
     """Distributed mesh plus cell and facet tags from a gmsh model held on rank 0.
 

@@ -1,15 +1,18 @@
-"""Effective modulus of a discretisation: a static stretch of the very mesh that runs.
+"""Static responses of a discretisation: a static stretch, or a static pressure, of the very
+mesh that runs.
 
 The interface springs add compliance, and on an unstructured mesh more than the 1D
 series estimate says (shared/DESIGN.md §9: -8 % wave speed measured against -4.7 %
-predicted at C = 10 E / h). Tests that predict arrival times use this modulus.
+predicted at C = 10 E / h). Tests that predict arrival times use this modulus; the slab's
+slow-ramp check uses the static centre deflection (docs/slab.md).
 """
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from mpi4py import MPI
+from petsc4py import PETSc
 
-from dolfrag import bulk, loads, mesh, space as spaces
+from dolfrag import bulk, loads, mesh, space as spaces, supports
 from dolfrag.interface import links as link_table
 from dolfrag.interface.jumps import Jump
 
@@ -45,3 +48,48 @@ def uniaxial_strain_modulus(case):
     u[free] = spla.spsolve(K[free][:, free].tocsc(), f[free])
     right = space.boundary_dofs(domain.facet_tags, domain.boundary_tag("right"))
     return case.geometry.length / abs(u[d * right].mean())
+
+
+def _stiffness_with_springs(case, space, domain, stiffness_ratio=None):
+    """K + B^T D B (scipy CSR, N/m) of the case's mesh, springs C_N, C_T (Pa/m) of the case,
+    or stiffness_ratio * E / h both when given (large: nearly rigid interfaces)."""
+    K_bulk = bulk.assemble(space, domain, case).K
+    indptr, cols, vals = K_bulk.getValuesCSR()
+    K = sp.csr_matrix((vals, cols, indptr), shape=K_bulk.getSize())
+    C_N, C_T = case.interface.stiffness(case.material.E, case.mesh.size)
+    if stiffness_ratio is not None:
+        C_N = C_T = stiffness_ratio * case.material.E / case.mesh.size
+    return K + interface_stiffness(Jump(space, link_table.build(space)), C_N, C_T)
+
+
+def static_centre_deflection(case, stiffness_ratio=None, rtol=1e-10):
+    """Centre deflection per unit pressure (m/Pa) of the case's slab mesh with its interface
+    springs (or stiffness_ratio * E / h), its supports, and a uniform static pressure on
+    its load boundary: the mean displacement along the thickness (z) of the dofs within one
+    mesh size of the centre line (x, y) = (L_x / 2, L_y / 2), as the runner's deflection.
+    Bulk and springs only (no bars, no contact: elastic springs in tension and compression).
+    Conjugate gradients with PETSc's algebraic multigrid to ``rtol``. Serial on every
+    calling rank (COMM_SELF; gmsh is deterministic: the same mesh a parallel run
+    distributes)."""
+    domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF)
+    space = spaces.create(domain)
+    K = _stiffness_with_springs(case, space, domain, stiffness_ratio)
+    f = loads.unit_pressure_vector(space, domain, case.load.boundary).x.array
+    free = np.setdiff1d(np.arange(K.shape[0]), supports.constrained_components(space, domain, case.supports))
+    A = K[free][:, free].tocsr()
+    matrix = PETSc.Mat().createAIJ(A.shape, csr=(A.indptr, A.indices, A.data), comm=MPI.COMM_SELF)
+    ksp = PETSc.KSP().create(MPI.COMM_SELF)
+    ksp.setOperators(matrix)
+    ksp.setType("cg")
+    ksp.getPC().setType("gamg")
+    ksp.setTolerances(rtol=rtol, max_it=10000)
+    b, x = matrix.createVecs()
+    b.array[:] = f[free]
+    ksp.solve(b, x)
+    if ksp.getConvergedReason() <= 0:
+        raise RuntimeError(f"static solve did not converge: reason {ksp.getConvergedReason()}")
+    u = np.zeros(K.shape[0])
+    u[free] = x.array
+    g = case.geometry
+    near = np.all(np.abs(space.x[:, :2] - np.array([g.length, g.width]) / 2) < case.mesh.size, axis=1)
+    return float(u[space.gdim * np.flatnonzero(near) + 2].mean())

@@ -7,8 +7,11 @@ its own boundaries and materials through physical groups. Lengths in metres.
 
 The mesh is distributed so that each rank holds every cell around the vertices it
 owns (whole vertex stars, shared/DESIGN.md §4-5): the interface step of a vertex is
-then solved by the vertex's owner with no communication.
+then solved by the vertex's owner with no communication. The owner of each cell comes
+from DOLFINx's graph partitioner, or, for tests that need to know where the partition
+boundary runs, from a geometric ``owner_rule`` given to ``build``.
 """
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,11 +50,12 @@ class Domain:
         return self.boundaries[name]
 
 
-def star_partitioner(comm, nparts, tdim, cells, ghost_mode):
-    """Cell destinations: the default owner first, then every rank owning a cell that
-    shares a vertex with it. Each rank then holds the whole star of every vertex
-    of its own cells (DOLFINx 0.5.2 refuses ``GhostMode.shared_vertex``). Collective."""
-    owner = compat.default_cell_owners(comm, nparts, tdim, cells)
+def star_partitioner(comm, nparts, tdim, cells, ghost_mode, owners=compat.default_cell_owners):
+    """Cell destinations: the owner first (``owners(comm, nparts, tdim, cells)``, by default
+    DOLFINx's graph partitioner), then every rank owning a cell that shares a vertex with
+    it. Each rank then holds the whole star of every vertex of its own cells (DOLFINx 0.5.2
+    refuses ``GhostMode.shared_vertex``). Collective."""
+    owner = owners(comm, nparts, tdim, cells)
     c2v = compat.adjacency_array(cells, tdim + 1)
     n_cells = len(c2v)
     pairs = np.unique(np.column_stack([c2v.ravel(), np.repeat(owner, tdim + 1)]), axis=0)
@@ -135,9 +139,26 @@ def _physical_names(gmsh, dim):
             for _, tag in gmsh.model.getPhysicalGroups(dim)}
 
 
-def build(geometry, size, comm=MPI.COMM_WORLD):
+def _geometric_owners(owner_rule, x, gdim):
+    """The ``owners`` of star_partitioner from ``owner_rule(centroids (n, gdim) m) -> (n,)
+    int ranks``, the input nodes' coordinates x (m) being on this rank (all of them on rank
+    0, where gmsh meshed; none elsewhere, where there are no input cells either)."""
+    def owners(comm, nparts, tdim, cells):
+        centroids = x[compat.adjacency_array(cells, tdim + 1)].mean(axis=1)[:, :gdim]
+        rank = np.asarray(owner_rule(centroids), dtype=np.int32).reshape(len(centroids))
+        if np.any((rank < 0) | (rank >= nparts)):
+            raise ValueError(f"owner_rule gave ranks outside [0, {nparts})")
+        return rank
+    return owners
+
+
+def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
     """Mesh ``geometry`` (a config.Geometry) with element size ``size`` (m) and distribute it.
 
+    owner_rule: None (DOLFINx's graph partitioner decides which rank owns each cell), or a
+    function of the cell centroids (n, gdim) (m) returning each cell's owner rank (n,): a
+    partition boundary where a test wants it (e.g. ``lambda c: c[:, 0] > L / 2`` on 2
+    ranks); the stars around it are still completed by star_partitioner.
     gmsh runs on rank 0 only; collective.
     """
     header, error = None, None
@@ -157,9 +178,12 @@ def build(geometry, size, comm=MPI.COMM_WORLD):
     if error:
         raise CaseError(error)
     tdim, boundaries, materials = header
+    partitioner = star_partitioner
+    if owner_rule is not None:
+        x = compat.gmsh_nodes(gmsh.model) if comm.rank == 0 else np.empty((0, 3))
+        partitioner = functools.partial(star_partitioner, owners=_geometric_owners(owner_rule, x, tdim))
     try:
-        msh, cell_tags, facet_tags = compat.mesh_from_gmsh(
-            comm, gmsh.model, tdim, star_partitioner)
+        msh, cell_tags, facet_tags = compat.mesh_from_gmsh(comm, gmsh.model, tdim, partitioner)
     finally:
         if comm.rank == 0:
             gmsh.finalize()

@@ -55,7 +55,10 @@ def layer_polylines(rebar, geometry, gdim):
     2D) of the bar layers of a config.Rebar on a rectangle or box: one layer per face in
     ``rebar.faces`` at ``rebar.cover`` (m, face to bar axis), bars along each axis of
     ``rebar.direction`` that is tangent to the face, ``rebar.spacing`` apart (m). In 3D the
-    second direction of a face sits one diameter further in, so that the bars cross."""
+    second direction of a face sits one diameter further in, so that the bars cross, and a
+    layer has as many bars as fit ``spacing`` apart with at least half a spacing to each
+    edge, centred on the face (at least one): the steel per metre away from the edges is
+    then A / spacing, as in 2D."""
     extent = np.array([geometry.length, geometry.width, geometry.thickness][:gdim])
     area = np.pi * rebar.diameter**2 / 4
     lines, areas = [], []
@@ -69,8 +72,9 @@ def layer_polylines(rebar, geometry, gdim):
                 positions, bar_area = [None], area / rebar.spacing
             else:
                 across = 3 - normal_axis - along
-                count = max(1, int(np.floor(extent[across] / rebar.spacing)))
-                positions = (np.arange(count) + 0.5) * extent[across] / count
+                # 1e-9: an extent that is a whole number of spacings keeps its last bar
+                count = max(1, int(np.floor(extent[across] / rebar.spacing + 1e-9)))
+                positions = extent[across] / 2 + (np.arange(count) - (count - 1) / 2) * rebar.spacing
                 bar_area = area
             for position in positions:
                 ends = np.zeros((2, gdim))

@@ -7,6 +7,7 @@ import dataclasses
 import math
 import time
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 from mpi4py import MPI
@@ -147,33 +148,54 @@ def _free_end(case):
     return case.geometry.length if case.load.boundary == "left" else 0.0
 
 
+class WallSection(NamedTuple):
+    """A wall section (2D) or slab (3D) that gets the ``wall`` block (post/wall.py): span (m;
+    (L_x, L_y) for a slab), thickness H (m), free_face (m, its coordinate on thickness_axis),
+    span_axis (0, or (0, 1) for a slab), thickness_axis (1 in 2D, 2 in 3D)."""
+    span: object
+    thickness: float
+    free_face: float
+    span_axis: object
+    thickness_axis: int
+
+
 def _wall_section(case):
-    """(span L, thickness H, free face y) (m) of a rectangle loaded on its bottom or top
-    face, a wall section spanning x, else None: it then gets the ``wall`` block."""
-    if case.geometry.kind != "rectangle" or case.load.boundary not in ("bottom", "top"):
-        return None
-    H = case.geometry.width
-    return case.geometry.length, H, H if case.load.boundary == "bottom" else 0.0
+    """The WallSection of a rectangle loaded on its bottom or top face (a wall section
+    spanning x) or of a box loaded on its front or back face (a slab spanning x and y),
+    else None."""
+    g, face = case.geometry, case.load.boundary
+    if g.kind == "rectangle" and face in ("bottom", "top"):
+        return WallSection(g.length, g.width, g.width if face == "bottom" else 0.0, 0, 1)
+    if g.kind == "box" and face in ("front", "back"):
+        return WallSection((g.length, g.width), g.thickness, g.thickness if face == "front" else 0.0, (0, 1), 2)
+    return None
 
 
-def _wall_estimates(case, C_N):
-    """post.wall.estimates (block, SDOF history) for a wall case: the 1D wave speed is the plane-strain P-wave
-    modulus in series with the interface springs, one per mesh size (analytic.py; the
-    unstructured mesh is measured a few per cent softer still, docs/validation.md)."""
+def _wall_estimates(case, C_N, section):
+    """post.wall.estimates (block, bending history) for a wall case: the 1D wave speed is the
+    uniaxial-strain (P-wave) modulus in series with the interface springs, one per mesh size
+    (analytic.py; the unstructured mesh is measured a few per cent softer still,
+    docs/validation.md)."""
     mat = case.material
     M = analytic.series_interface_modulus(analytic.p_wave_modulus(mat.E, mat.nu, mat.hypothesis), C_N,
                                           case.mesh.size)
     sup = case.supports
     kind = "clamped" if sup.clamped else "simple" if sup.simple else None
+    bends_in_plane_strain = np.ndim(section.span) or mat.hypothesis == "plane_strain"  # a slab: always nu
     return wall.estimates(loads.signal(case.load), case.time.end, analytic.wave_speed(M, mat.rho), mat.rho, mat.E,
-                          shpb.tensile_strength(case.interface, C_N), case.geometry.width, case.geometry.length,
-                          kind, mat.nu if mat.hypothesis == "plane_strain" else 0.0)
+                          shpb.tensile_strength(case.interface, C_N), section.thickness, section.span,
+                          kind, mat.nu if bends_in_plane_strain else 0.0)
 
 
-def _midspan(space, span, size):
-    """Owned flat y components of the dofs within half a mesh size of x = span / 2."""
-    dofs = np.flatnonzero(np.abs(space.x[:space.n_owned_dofs, 0] - span / 2) < size / 2)
-    return space.gdim * dofs + 1
+def _midspan(space, section, size):
+    """Owned flat components along the thickness of the dofs on the centre line: within half
+    a mesh size of x = L/2 in 2D; in 3D within one mesh size of (L_x/2, L_y/2) on both axes
+    (an unstructured tetrahedral mesh may have no vertex within h/2 of a line)."""
+    axes = np.atleast_1d(section.span_axis)
+    half = size / 2 if len(axes) == 1 else size
+    x = space.x[:space.n_owned_dofs][:, axes]
+    dofs = np.flatnonzero(np.all(np.abs(x - np.asarray(section.span) / 2) < half, axis=1))
+    return space.gdim * dofs + section.thickness_axis
 
 
 def run(case, out, quiet=False, comm=None):
@@ -187,9 +209,9 @@ def run(case, out, quiet=False, comm=None):
     domain, space, links, integ, n_steps, dt_crit, stretch = _setup(case, comm)
     probes = _probes(space, domain)
     section = _wall_section(case)
-    midspan = _midspan(space, section[0], case.mesh.size) if section else None
-    deflection = ([], [])  # s, m: the midspan deflection (mean y displacement across the section)
-    wave = ([], [])  # this rank's midspan dofs: depth y (m) and velocity v_y (m/s) at each row
+    midspan = _midspan(space, section, case.mesh.size) if section else None
+    deflection = ([], [])  # s, m: the midspan deflection (mean displacement across the thickness)
+    wave = ([], [])  # this rank's midspan dofs: depth (m) and velocity across the thickness (m/s) at each row
     columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
                "newton_unconverged", "newton_residual", *probes, *(["w_midspan_m"] if section else []),
                *(["rebar_force_max_N"] if integ.rebars else [])]
@@ -252,7 +274,7 @@ def run(case, out, quiet=False, comm=None):
                             *(probe_sums[:, 0] / np.maximum(probe_sums[:, 1], 1)),
                             *([comm.allreduce(integ.rebars.force_max, op=MPI.MAX)] if integ.rebars else [])])
                 if section:
-                    wave[0].append(space.x[midspan // space.gdim, 1])
+                    wave[0].append(space.x[midspan // space.gdim, section.thickness_axis])
                     wave[1].append(integ.v.x.array[midspan].copy())
                     deflection[0].append(integ.t)
                     deflection[1].append(probe_sums[-1, 0] / max(probe_sums[-1, 1], 1))
@@ -296,7 +318,6 @@ def run(case, out, quiet=False, comm=None):
                             "plastic_work_J": comm.allreduce(bars.plastic_work),
                             "units": "N and J per metre of depth in 2D"}
     if section:
-        span, thickness, free_face = section
         # in the reference configuration: a bounding box then says where a piece came from
         reference = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, None, break_time)
         peak_force = [summary["rebar"]["peak_force_N"]] if integ.rebars else None
@@ -305,9 +326,9 @@ def run(case, out, quiet=False, comm=None):
             d = space.gdim
             block = wall.wall_block(reference, table[:, :d], table[:, 2 * d], table[:, 2 * d + 1],
                                     table[:, 2 * d + 3], *deflection, peak_force, time.perf_counter() - wall_start,
-                                    span=span, thickness=thickness, free_face=free_face, h=case.mesh.size)
+                                    h=case.mesh.size, **section._asdict())
         summary["wall"] = comm.bcast(block, root=0)
-        summary["wall"]["estimates"], sdof_history = _wall_estimates(case, integ.model.C_N)
+        summary["wall"]["estimates"], bending = _wall_estimates(case, integ.model.C_N, section)
     if stretch is not None:
         reference = fragments(space, links, integ.model.broken(), integ.m, integ.v.x.array, None, break_time)
         summary["expanding_bar"] = expanding.block(reference, stretch.length, stretch.rate, case.material,
@@ -334,16 +355,26 @@ def run(case, out, quiet=False, comm=None):
             signal_png(loads.signal(case.load), case.time.end, figures / "load.png", comm,
                        f"load on '{case.load.boundary}' ({case.name})")
         if section:
-            broken_mesh_png(space, integ.u, v[:, 1], figures / "velocity_y.png", "velocity v_y (m/s)", scale=1.0,
+            across = "xyz"[section.thickness_axis]
+            broken_mesh_png(space, integ.u, v[:, section.thickness_axis], figures / f"velocity_{across}.png",
+                            f"velocity v_{across} (m/s)", scale=1.0,
                             cell_offset=exploded(frags, fragment_of_cell, EXPLODE),
                             note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
                                  f"t = {integ.t * 1e3:.3g} ms")
-            deflection_png(deflection[0], deflection[1], sdof_history, figures / "deflection.png", comm,
-                           f"midspan deflection ({case.name})", summary["wall"]["first_through_crack_s"])
+            slab = bool(np.ndim(section.span))
+            if slab:  # the half y < L_y / 2, seen from +y: the cut along the centre line shows the cracks inside
+                centroid_y = space.x[space.cell_dofs[:space.n_owned_cells], 1].mean(axis=1)
+                broken_mesh_png(space, integ.u, damage.x.array, figures / "slab.png", "damage 1 - beta (-)",
+                                cells=centroid_y < section.span[1] / 2, view=(0.4, 1.0, 0.35),
+                                note=f"half slab y < {section.span[1] / 2:g} m; t = {integ.t * 1e3:.3g} ms")
+            deflection_png(deflection[0], deflection[1], bending, figures / "deflection.png", comm,
+                           f"{'centre' if slab else 'midspan'} deflection ({case.name})",
+                           summary["wall"]["first_through_crack_s"],
+                           "thin plate, p(t) applied statically" if slab else "elastic SDOF (Biggs)")
             rows = comm.gather(wave, root=0)
             if rows is not None:
-                y = [np.concatenate(parts) for parts in zip(*(r[0] for r in rows))]
-                v_y = [np.concatenate(parts) for parts in zip(*(r[1] for r in rows))]
-                wave_png(deflection[0], y, v_y, section[1], figures / "wave.png", comm,
-                         f"v_y through the thickness at midspan ({case.name})")
+                depth = [np.concatenate(parts) for parts in zip(*(r[0] for r in rows))]
+                v_across = [np.concatenate(parts) for parts in zip(*(r[1] for r in rows))]
+                wave_png(deflection[0], depth, v_across, section.thickness, figures / "wave.png", comm,
+                         f"v_{across} through the thickness at midspan ({case.name})")
     return summary

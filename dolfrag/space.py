@@ -44,7 +44,9 @@ class Space:
     def components(self, dofs):
         """Flat indices of all components of ``dofs``: shape (..., k) -> (..., k * gdim)."""
         dofs = np.asarray(dofs)
-        return (self.gdim * dofs[..., None] + np.arange(self.gdim)).reshape(*dofs.shape[:-1], -1)
+        # the width given, not -1: a rank may hold none of the dofs (e.g. of a clamped face)
+        width = dofs.shape[-1] * self.gdim
+        return (self.gdim * dofs[..., None] + np.arange(self.gdim)).reshape(*dofs.shape[:-1], width)
 
     @property
     def vertex_x(self):

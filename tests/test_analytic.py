@@ -176,3 +176,37 @@ def test_fragmentation_scales_of_the_zmr_material_match_physics_md_4():
     grady = analytic.grady_size(rate / analytic.fragmentation_strain_rate(E, rho, G_c, sigma_c))
     assert grady * analytic.fragmentation_length(E, G_c, sigma_c) == pytest.approx(
         np.cbrt(24 * G_c / (rho * rate**2)), rel=1e-12)
+
+
+# Thin plates under uniform pressure: the coefficient alpha of w = alpha q a^4 / D
+def plate_alpha(deflection, b_over_a=1.0, **kw):
+    return deflection(1.0, 1.0, b_over_a, 1.0, **kw)
+
+
+def test_clamped_square_plate_deflects_0_00126_q_a4_over_D():
+    # Timoshenko & Woinowsky-Krieger (1959) table 35 prints 0.00126, three digits cut
+    # from the converged value (0.0012653 here): within one unit of the last digit
+    assert plate_alpha(analytic.clamped_plate_deflection) == pytest.approx(0.00126, abs=1e-5)
+    # the one-term Ritz value of the textbooks, (1 - s^2)^2 (1 - t^2)^2 alone: 0.00133
+    assert plate_alpha(analytic.clamped_plate_deflection, terms=1) == pytest.approx(0.00133, abs=5e-6)
+    # converged: a sixth term moves the fifth digit by less than 1e-4 relative
+    assert plate_alpha(analytic.clamped_plate_deflection, terms=6) == pytest.approx(
+        plate_alpha(analytic.clamped_plate_deflection), rel=1e-4)
+
+
+def test_simply_supported_square_plate_deflects_0_00406_q_a4_over_D():
+    # Timoshenko & Woinowsky-Krieger table 8: 0.00406; Roark (table 11.4, case 1a,
+    # nu = 0.3) writes it w = 0.0444 q a^4 / (E t^3) = 0.0444 / (12 (1 - 0.3^2)) q a^4 / D
+    alpha = plate_alpha(analytic.simply_supported_plate_deflection)
+    assert alpha == pytest.approx(0.00406, abs=5e-6)  # half a unit of the last digit
+    assert 12 * (1 - 0.3**2) * alpha == pytest.approx(0.0444, abs=5e-5)
+    # a long plate bends as a strip, 5 q a^4 / (384 D); at b = 20 a the ends are far
+    # (their effect decays as exp(-pi b / (2 a)))
+    assert plate_alpha(analytic.simply_supported_plate_deflection, 20.0) == pytest.approx(5 / 384, rel=1e-6)
+
+
+def test_plate_rigidity_is_E_t3_over_12_1_minus_nu2():
+    # the slab: E t^3 = 35 GPa x 1e-3 m^3 = 3.5e7 N m over 12 (1 - 0.2^2) = 11.52
+    assert analytic.plate_rigidity(35e9, 0.1, 0.2) == pytest.approx(35e9 * 1e-3 / 11.52, rel=1e-12)
+    with pytest.raises(ValueError, match="clamped"):
+        analytic.plate_deflection(1.0, 1.0, 1.0, 1.0, "rollers")

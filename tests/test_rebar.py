@@ -59,11 +59,13 @@ def test_strain_operator_reads_stretch_not_shear_or_translation(wall_bars):
     assert np.abs(bars.B @ shift).max() < 1e-12
 
 
-def test_bar_mass_is_lumped_whole(wall_bars, comm):
-    space, bars, lines, areas = wall_bars
+@pytest.mark.parametrize("layers", ["wall_bars", "box_bars"])  # 2D and 3D
+def test_bar_mass_is_lumped_whole(layers, request, comm):
+    space, bars, lines, areas = request.getfixturevalue(layers)
     m = np.zeros(space.x.size)
     bars.add_mass(m)
-    owned = comm.allreduce(m[:space.n_owned_dofs * 2].sum()) / 2  # each component carries the mass
+    d = space.gdim  # each component carries the mass
+    owned = comm.allreduce(m[:space.n_owned_dofs * d].sum()) / d
     expected = 7850.0 * sum(a * np.linalg.norm(line[1] - line[0]) for line, a in zip(lines, areas))
     assert owned == pytest.approx(expected, rel=1e-12)
 
@@ -136,16 +138,65 @@ def test_cracked_plain_section_separates_while_bars_hold_it(tmp_path):
     assert 0.9 * held["rebar"]["peak_force_N"] <= sampled <= held["rebar"]["peak_force_N"]
 
 
-def test_crossing_layers_in_a_box_read_the_in_plane_stretch(comm):
-    """3D: two crossing layers (x and y bars) near the z = 0 face of a small slab."""
-    geometry = SimpleNamespace(kind="box", tdim=3, length=0.2, width=0.2, thickness=0.05)
-    space = spaces.create(mesh.build(geometry, 0.02, comm))
+BOX = SimpleNamespace(kind="box", tdim=3, length=0.2, width=0.2, thickness=0.05)
+AREA_3D = np.pi * 0.008**2 / 4  # m^2, one 8 mm bar
+
+
+@pytest.fixture(scope="module")
+def box_bars(comm):
+    """3D: two crossing layers (x and y bars, 4 each way) near the z = 0 face of a small slab."""
+    space = spaces.create(mesh.build(BOX, 0.02, comm))
     layers = SimpleNamespace(faces=("front",), cover=0.015, diameter=0.008, spacing=0.05, direction="xy")
-    lines, areas = rebar.layer_polylines(layers, geometry, 3)
+    lines, areas = rebar.layer_polylines(layers, BOX, 3)
+    return space, rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm), lines, areas
+
+
+def biaxial_stretch(space, eps):
+    """u = eps (x, y, 0): a uniform stretch in the plane of the layers (P1 holds it exactly)."""
+    u = np.zeros(space.x.size)
+    u[0::3], u[1::3] = eps * space.x[:, 0], eps * space.x[:, 1]
+    return u
+
+
+def test_crossing_layers_in_a_box_read_the_in_plane_stretch(box_bars, comm):
+    space, bars, lines, areas = box_bars
     assert len(lines) == 8  # 4 bars each way, 50 mm apart across 0.2 m
     assert {line[0, 2] for line in lines} == {0.015, 0.023}  # y bars one diameter further in
-    bars = rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm)
-    u = np.zeros(space.x.size)
-    u[0::3], u[1::3] = 1e-3 * space.x[:, 0], 1e-3 * space.x[:, 1]
+    assert areas == pytest.approx(AREA_3D, rel=1e-12)  # one bar each in 3D, not per metre
     assert comm.allreduce(int(bars.counted.sum())) > 0
-    assert bars.B @ u == pytest.approx(np.full(bars.B.shape[0], 1e-3), rel=1e-9)  # P1: exact
+    assert bars.B @ biaxial_stretch(space, 1e-3) == pytest.approx(np.full(bars.B.shape[0], 1e-3), rel=1e-9)
+
+
+def test_a_3d_layer_carries_n_E_s_A_eps_across_any_section_and_nothing_in_compression(box_bars, comm):
+    """The bars' forces on the cells left of a section x = X (cell centroids; DG dofs belong
+    to one cell) are what the bars crossing it carry: 4 x-bars, each E_s A eps, whatever
+    the cut (a bar zig-zagging across a jagged cut gives +N - N + N); the y-bars, along y
+    exactly, add nothing along x."""
+    space, bars, _, _ = box_bars
+    if comm.size > 1:
+        pytest.skip("sums the force on local cells: serial")
+    eps = 1e-4  # elastic: no f_y here
+    f, k = bars.forces(biaxial_stretch(space, eps), commit=True)
+    # every segment reads eps exactly (P1): round-off only
+    assert bars.force_max == pytest.approx(E_S * AREA_3D * eps, rel=1e-9)
+    assert np.all(k == E_S * AREA_3D)
+    centroid_x = space.x[space.cell_dofs[:space.n_owned_cells], 0].mean(axis=1)
+    for X in (0.05, 0.1, 0.137):
+        left = space.cell_dofs[:space.n_owned_cells][centroid_x < X].ravel()
+        assert f[3 * left].sum() == pytest.approx(4 * E_S * AREA_3D * eps, rel=1e-9), X
+        assert abs(f[3 * left + 2].sum()) < 1e-9 * E_S * AREA_3D * eps  # in-plane bars: no z force
+    squeeze, k = bars.forces(biaxial_stretch(space, -eps), commit=False)
+    assert np.all(squeeze == 0.0) and np.all(k == 0.0)  # tension only
+
+
+def test_slab_layers_are_spacing_apart_centred_on_the_face():
+    # the slab: 1 m wide, bars every 0.15 m -> 6 bars 0.15 apart, 0.125 m from the edges
+    # (0.167 m apart if spread evenly: 10 % less steel per metre than asked)
+    slab = SimpleNamespace(kind="box", tdim=3, length=1.0, width=1.0, thickness=0.1)
+    layers = SimpleNamespace(faces=("front", "back"), cover=0.03, diameter=0.01, spacing=0.15, direction="xy")
+    lines, _ = rebar.layer_polylines(layers, slab, 3)
+    assert len(lines) == 24  # 6 bars, 2 directions, 2 faces
+    x_bars = [line for line in lines if line[0, 0] != line[1, 0]]
+    y_at = sorted({round(line[0, 1], 12) for line in x_bars})
+    assert y_at == pytest.approx(0.125 + 0.15 * np.arange(6), abs=1e-12)
+    assert sorted({round(line[0, 2], 12) for line in lines}) == [0.03, 0.04, 0.06, 0.07]

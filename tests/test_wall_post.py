@@ -124,12 +124,12 @@ def test_first_through_crack_forms_when_its_last_link_breaks():
     t2 = np.full(len(x2), 1e-3)
     x3, b3, w3, t3 = line(0.8, 0.0, H, time=5e-3)
     x_link, _, _, break_time = table((x1, b1, w1, t1), (x2, b2, w2, t2), (x3, b3, w3, t3))
-    assert wall.first_through_crack_time(x_link, break_time, 0, 1, H, WIDTH) == 1e-3
+    assert wall.first_through_crack_time(x_link, break_time, 1, H, WIDTH) == 1e-3
     # without the x = 0.7 crack: the x = 0.3 one, when its link on y = 0 breaks
-    first = wall.first_through_crack_time(*table((x1, b1, w1, t1), (x3, b3, w3, t3))[::3], 0, 1, H, WIDTH)
+    first = wall.first_through_crack_time(*table((x1, b1, w1, t1), (x3, b3, w3, t3))[::3], 1, H, WIDTH)
     assert first == t1.max() == pytest.approx(2.1e-3, rel=EXACT)
     half = table(line(0.5, 0.0, H / 2, time=1e-3))
-    assert wall.first_through_crack_time(half[0], half[3], 0, 1, H, WIDTH) is None
+    assert wall.first_through_crack_time(half[0], half[3], 1, H, WIDTH) is None
 
 
 def test_damage_sums_damage_times_weight_per_zone_and_names_the_zone_that_broke_first():
@@ -183,3 +183,78 @@ def test_wall_block_interpolates_the_deflection_at_the_first_through_crack():
                             span=L, thickness=H, free_face=H, h=h)
     assert quiet["first_through_crack_s"] is None and quiet["midspan_deflection"]["at_first_through_crack_m"] is None
     assert quiet["through_cracks"] == [] and quiet["rebar_peak_force_N"] is None
+
+
+# A slab 1 m x 1 m x 0.1 m (3D): spans along x and y, thickness along z, free face z = H
+SPANS = (L, L)
+
+
+def slab_pieces(boxes, v_z):
+    """Fragments made of the boxes[i] = (x_lo, x_hi, y_lo, y_hi, z_lo, z_hi) (m), moving at
+    v_z[i] (m/s) along z; masses (kg) are the volumes times RHO."""
+    b = np.asarray(boxes, dtype=float)
+    lo, hi = b[:, 0::2], b[:, 1::2]
+    k = len(b)
+    return Fragments(RHO * np.prod(hi - lo, axis=1), (lo + hi) / 2, np.column_stack([np.zeros((k, 2)), v_z]),
+                     lo, hi, np.ones(k, dtype=np.int64), np.zeros((0, 2), dtype=np.int64), np.zeros(0))
+
+
+SLAB, SLAB_SCAB = (0.0, L, 0.0, L, 0.0, H), (0.4, 0.6, 0.3, 0.7, 0.08, H)
+
+
+def test_slab_scab_reports_its_footprint_on_both_span_axes():
+    s = wall.scab(slab_pieces([SLAB, SLAB_SCAB], [0.5, 3.0]), H, axis=2, thickness=H, h=h)
+    assert s["fragments"] == [1] and s["thickness_m"] == pytest.approx(0.02, abs=EXACT)
+    assert s["velocity_m_s"] == pytest.approx(3.0, abs=EXACT)
+    assert s["mass_kg"] == pytest.approx(RHO * 0.2 * 0.4 * 0.02, rel=EXACT)
+    assert s["span_extent_m"] == [[0.4, 0.6], [0.3, 0.7]]
+
+
+def plane(x, broken=True, time=np.nan):
+    """Links on a grid of vertices h apart over the plane x = const of the slab, through
+    the whole thickness (z = 0 .. H, y = 0 .. L), each of weight h^2 / 3."""
+    y, z = np.meshgrid(np.arange(round(L / h) + 1) * h, np.arange(round(H / h) + 1) * h, indexing="ij")
+    n = y.size
+    return (np.column_stack([np.full(n, x), y.ravel(), z.ravel()]), np.full(n, broken), np.full(n, h**2 / 3),
+            np.full(n, time, dtype=float))
+
+
+def test_slab_through_crack_is_a_plane_across_the_thickness_with_its_extent():
+    x_link, broken, weight, _ = table(plane(0.05), plane(0.5, broken=False))
+    found = wall.through_cracks(x_link, broken, weight, (0, 1), 2, H, WIDTH)
+    assert found.position.shape == (1, 2) and found.position[0] == pytest.approx([0.05, 0.5], abs=EXACT)
+    assert found.span_min.tolist() == [[0.05, 0.0]] and found.span_max[0] == pytest.approx([0.05, L], abs=EXACT)
+    # the same plane short of the free face by one cell is no through-crack
+    short = x_link[:, 2] < H - h / 2
+    assert not len(wall.through_cracks(x_link[short], broken[short], weight[short], (0, 1), 2, H, WIDTH).position)
+
+
+def test_slab_support_zones_are_the_edge_bands_and_midspan_the_central_square():
+    # near the edge y = 0 at mid-x (supports); the centre (midspan); off-centre in y only (neither)
+    x_link = np.array([[0.5, 0.05, H / 2], [0.5, 0.5, H / 2], [0.5, 0.3, H / 2]])
+    zones = wall.damage_by_zone(x_link, np.ones(3), np.array([1e-4, 2e-4, 4e-4]), np.array([2e-3, 1e-3, 5e-4]),
+                                SPANS, (0, 1))
+    assert zones["supports"]["damaged_area_m2"] == pytest.approx(1e-4, rel=EXACT)
+    assert zones["midspan"]["damaged_area_m2"] == pytest.approx(2e-4, rel=EXACT)
+    assert zones["supports"]["first_break_s"] == 2e-3 and zones["first"] == "midspan"
+
+
+def test_slab_central_panel_must_cover_the_centre_on_both_axes():
+    # a strip over x = 0.5 but not over y = 0.5 is not the panel; the punched square is
+    strip, square = (0.3, 0.7, 0.0, 0.2, 0.0, H), (0.3, 0.7, 0.3, 0.7, 0.0, H)
+    frags = slab_pieces([strip, square], [9.0, 4.0])
+    panel = wall.central_panel(frags, SPANS, (0, 1), 2)
+    assert panel["fragment"] == 1 and panel["velocity_m_s"] == 4.0
+    assert panel["span_extent_m"] == [[0.3, 0.7], [0.3, 0.7]]
+
+
+def test_slab_wall_block_is_json_ready_with_per_axis_results():
+    x_link, broken, weight, break_time = table(plane(0.05, time=1e-3), plane(0.5, broken=False))
+    block = wall.wall_block(slab_pieces([SLAB, SLAB_SCAB], [0.5, 3.0]), x_link, weight,
+                            np.isfinite(break_time).astype(float), break_time, np.array([0.0, 2e-3]),
+                            np.array([0.0, 1e-3]), None, 1.0, span=SPANS, thickness=H, free_face=H, h=h,
+                            span_axis=(0, 1), thickness_axis=2)
+    assert json.loads(json.dumps(block))["through_cracks"] == [{"position_m": pytest.approx([0.05, 0.5]),
+                                                               "span_extent_m": [[0.05, 0.05], [0.0, L]]}]
+    assert block["first_through_crack_s"] == 1e-3 and block["damage_by_zone"]["first"] == "supports"
+    assert block["midspan_deflection"]["at_first_through_crack_m"] == pytest.approx(0.5e-3, abs=1e-18)
