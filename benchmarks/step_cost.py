@@ -1,7 +1,7 @@
 """Cost of a time step: ns per element-step and peak memory.
 
     python benchmarks/step_cost.py [--cells 10000 100000] [--steps 200] [--law elastic|rccm]
-                                   [--scheme imex|theta] [--h-factor 1]
+                                   [--scheme imex|theta] [--h-factor 1] [--dim 2|3]
     mpirun -n 2 python benchmarks/step_cost.py
 
 Each imex row also gives the bytes the step must stream at least once per element (its
@@ -13,7 +13,8 @@ the imex step, after 5 warm-up steps (the first include MUMPS' symbolic analysis
 reports its mean Newton iterations per step.
 
 A 2D plane-strain bar (the sound-bar case, refined to about the requested number of
-triangles) under its pulse. Times only the time loop (setup excluded) and, for the
+triangles) under its pulse; with --dim 3 the same bar as a box of square section, in
+tetrahedra. Times only the time loop (setup excluded) and, for the
 breakdown, each part of the step repeated alone. Prints one table on rank 0.
 With --law rccm the interfaces are RCCM (sigma_c = 0.4 MPa, so the reflected 1 MPa pulse damages
 them) with exact contact: the nonsmooth star Newton of every step is timed.
@@ -31,8 +32,10 @@ from dolfrag.config import load_case
 from dolfrag.runner import setup
 from dolfrag.solver.theta import Theta
 
-# gmsh's frontal mesher puts about 2.33 A / h^2 triangles in an area A (measured).
+# gmsh puts about 2.33 A / h^2 triangles in an area A and 5.5 V / h^3 tetrahedra in a
+# volume V (measured).
 TRIANGLES_PER_AREA_H2 = 2.33
+TETRAHEDRA_PER_VOLUME_H3 = 5.5
 
 
 def timed(fn, repeat, comm):
@@ -47,13 +50,18 @@ def timed(fn, repeat, comm):
 LAWS = {"elastic": [], "rccm": ["interface.law=rccm", "interface.sigma_c=4e5"]}
 
 
-def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0):
+def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
     case = load_case("sound-bar")
-    area = case.geometry.length * case.geometry.width
-    size = np.sqrt(TRIANGLES_PER_AREA_H2 * area / cells)
-    case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *LAWS[law]])
+    L, W = case.geometry.length, case.geometry.width
+    if dim == 2:
+        size = np.sqrt(TRIANGLES_PER_AREA_H2 * L * W / cells)
+        shape = []
+    else:  # the bar as a square-section box, rollers on its four long faces
+        size = np.cbrt(TETRAHEDRA_PER_VOLUME_H3 * L * W * W / cells)
+        shape = ["geometry.kind=box", f"geometry.thickness={W}", 'supports.rollers=["bottom","top","front","back"]']
+    case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *shape, *LAWS[law]])
     domain, space, links, integ, _, _ = setup(case, comm)
-    n_cells = space.mesh.topology.index_map(2).size_global
+    n_cells = space.mesh.topology.index_map(dim).size_global
     if scheme == "theta":
         return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),
                                         steps, comm, h_factor))
@@ -139,14 +147,17 @@ def main():
     parser.add_argument("--law", choices=sorted(LAWS), default="elastic")
     parser.add_argument("--scheme", choices=("imex", "theta"), default="imex")
     parser.add_argument("--h-factor", type=float, default=1.0, help="theta step / imex step")
+    parser.add_argument("--dim", type=int, choices=(2, 3), default=2, help="2D bar or 3D box bar")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
-        print(f"{args.scheme} step, 2D plane strain, {args.law} interfaces, {comm.size} rank(s)")
+        print(f"{args.scheme} step, {'2D plane strain' if args.dim == 2 else '3D'}, {args.law} interfaces, "
+              f"{comm.size} rank(s)")
         print(f"{'cells':>8s} {'ms/step':>8s} {'ns/elem-step':>13s} {'peak MB/rank':>13s}  "
               "breakdown ns/elem-step (wall) / notes")
     for target in args.cells:
-        n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law, args.scheme, args.h_factor)
+        n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law, args.scheme, args.h_factor,
+                                                    args.dim)
         if comm.rank == 0:
             print(f"{n_cells:8d} {1e3 * per_step:8.2f} {1e9 * per_step / n_cells:13.0f} {rss:13.0f}  {breakdown}")
     # after the runs, so that its array is not in their peak memory; every rank at once, as in a run
