@@ -26,6 +26,20 @@ def default_cell_owners(comm, nparts, tdim, cells):
     return dest.array[dest.offsets[:-1]]  # one owner per cell; an empty list may carry a stray entry
 
 
+def serial_cell_owners(c2v, nparts):
+    """Owner part of each cell (n_cells,) of the whole mesh c2v (n_cells, tdim + 1), split
+    into nparts by DOLFINx's default graph partitioner on this process alone (nparts need
+    not be the number of ranks). Not collective."""
+    from mpi4py import MPI
+    cells = dolfinx.cpp.graph.AdjacencyList_int64(np.ascontiguousarray(c2v, dtype=np.int64))
+    return default_cell_owners(MPI.COMM_SELF, nparts, c2v.shape[1] - 1, cells)
+
+
+def ghost_owners(index_map):
+    """(num_ghosts,) owner rank of each ghost of an IndexMap."""
+    return index_map.owners
+
+
 def adjacency_int32(data, offsets):
     return dolfinx.cpp.graph.AdjacencyList_int32(np.asarray(data, np.int32),
                                                  np.asarray(offsets, np.int32))
