@@ -257,6 +257,7 @@ def run(case, out, quiet=False, comm=None):
                             energies, external_work=energies.external_work + stretch.supplied(comm))
                 if integ.model.can_break:
                     break_time[integ.model.broken() & np.isnan(break_time)] = integ.t
+                    integ.timer.lap("diagnostics")
                     _check_converged(integ, comm)
                     integ.timer.lap("communication")
             except ConvergenceError:
