@@ -55,6 +55,10 @@ FROZEN = 1e6
 # reactions in the redundant directions (they do no work: same motion, same energies).
 REGULARISATION = 1e-6
 
+# A star has converged once its residual is below RTOL of its largest term (scaled as in
+# _solve_group): ~1e6 times round-off, where the quadratic phase of Newton has ended.
+RTOL = 1e-10
+
 # Full Newton steps for this many iterations, then backtracking on the scaled residual:
 # a semi-smooth Newton can cycle between active sets of contact and friction (measured on
 # the rigid laws, and on linear softening with friction: period-4 cycles of a star whose
@@ -105,7 +109,7 @@ class StarNewton:
     mass of every local dof component (kg); h: time step (s).
     """
 
-    def __init__(self, stars, jump, model, m, h, max_iterations=100, rtol=1e-10, predict=True):
+    def __init__(self, stars, jump, model, m, h, max_iterations=100, rtol=RTOL, predict=True):
         links = jump.links
         self.stars, self.jump, self.model, self.h = stars, jump, model, h
         self.max_iterations, self.rtol = max_iterations, rtol
