@@ -153,3 +153,14 @@ def test_clamped_wall_resistance_matches_physics_md():
     # R_m = 8 (M_ps + M_pm) / L = 16 M_p ~ 2.7 bar on 1 m (from the rounded 17 kN m/m)
     assert analytic.bending_resistance(17e3, 17e3, 1.0, "clamped") == pytest.approx(2.7e5, abs=0.05e5)
     assert analytic.bending_resistance(17e3, 17e3, 1.0, "simple") == pytest.approx(1.36e5)
+
+
+def test_catenary_sags_balance_the_parabola_tension_against_the_cable_stretch():
+    # a taut cable's parabola: H = q L^2 / (8 w), strain 8 w^2 / (3 L^2) (small sag); the
+    # elastic sag makes H = E A strain, the plastic one H = A f_y (round-off only)
+    q, L, E_s, A, f_y = 2e4, 1.2, 200e9, 5.2e-4, 5e8
+    w = analytic.catenary_sag_elastic(q, L, E_s, A)
+    assert q * L**2 / (8 * w) == pytest.approx(E_s * A * 8 * w**2 / (3 * L**2), rel=1e-12)
+    assert q * L**2 / (8 * analytic.catenary_sag_plastic(q, L, A, f_y)) == pytest.approx(A * f_y, rel=1e-12)
+    # the taut-cable cubic H^3 = E A q^2 L^2 / 24 (Irvine 1981)
+    assert (q * L**2 / (8 * w)) ** 3 == pytest.approx(E_s * A * q**2 * L**2 / 24, rel=1e-12)

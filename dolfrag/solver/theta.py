@@ -13,8 +13,9 @@ step's contact impulse:
 u_theta = theta u_{n+1} + (1 - theta) u_n; g = R B u the link jumps in the link frames R
 (interface/jumps.py, links.py); w the link weights; t the cohesive traction of the model
 with its damage lagged by one step (interface/models.py: each step problem is monotone),
-plus the bars' forces B_r^T (L N) at u_theta when there are rebars (rebar.py; their tangent
-joins K, and their elastic energy and yield dissipation join the balance);
+plus the bars' step forces C^T (N m) when there are rebars (rebar.py: the mean force over
+the step's strain path along the mean chord, a discrete gradient; its tangent in u_{n+1},
+material and geometric, not symmetric, joins the matrix);
 p_theta = theta p(t_{n+1}) + (1 - theta) p(t_n) the pressure on the load vector l; phi the
 Alart-Curnier projection (interface/contact.py): Signorini on the end-of-step gap, Coulomb
 with mu(state_n) on the step's slip, no penalty. With linear forces Newton's matrix is
@@ -33,7 +34,9 @@ g_N >= 0 at the ends of the steps), the step obeys exactly
     D_num = (theta - 1/2) (x.M x + du.K du + sum w dg.D dg) >= 0,  du = u_{n+1} - u_n
 
 so theta = 1/2 conserves energy (trapezoidal rule) and theta > 1/2 damps the high
-frequencies: D_num is reported as its own number (Energies.numerical). The energy
+frequencies: D_num is reported as its own number (Energies.numerical). The bars add
+Delta E_rebar + D_rebar_plastic on the left: the work of their step forces, exactly (any
+round-off rest is booked in D_num). The energy
 released by damage is booked at g_{n+1} by model.store, where this scheme stores it; for
 the rigid laws (threshold, linear softening) the cohesive part of the constraint reactions'
 work is stored in the links (model.absorb), split from D_contact as the star Newton does.
@@ -241,8 +244,8 @@ class Theta:
         if self.contact:  # a saddle point with zero pivots: MUMPS' pivoting LU
             pc.setType("lu")
             pc.setFactorSolverType("mumps")
-        else:  # W symmetric positive definite
-            pc.setType("cholesky")
+        else:  # W positive definite; symmetric but for the bars' step tangent
+            pc.setType("cholesky" if self.rebars is None else "lu")
             # serial: PETSc's own factor solves 4x faster than MUMPS (10 against 40 ms at
             # 72k unknowns, measured); in parallel MUMPS is the distributed one
             pc.setFactorSolverType("petsc" if comm.size == 1 else "mumps")
@@ -252,7 +255,7 @@ class Theta:
         ksp.setFromOptions()
         self.A, self.ksp = A, ksp
         self._rhs, self._dz = A.createVecs()
-        self._last_values, self._assembled_h = None, None
+        self._last_values = self._assembled_h = None
 
     @property
     def energy_time(self):
@@ -281,6 +284,29 @@ class Theta:
 
     def _substep(self, h):
         """Newton on (x, r) for one step of length h; commits only once converged."""
+        step = self._step_data(h)
+        x = self._x_last * (h / self._h_last) if self._h_last else np.zeros(self.owned.stop)
+        r = np.where(self._frozen, 0.0, self.r) if self.contact else self.r
+        point = self._evaluate(step, x, r)
+        cap = self.interface.max_iterations
+        for iteration in range(1, cap + 1):
+            if point.converged:
+                break
+            self.interface.iterations += 1
+            self._factorise(step, point)
+            dx, dr = self._correction(step, point, self._solve(point))
+            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps (as the star Newton)
+                dx, dr = (0.5 ** (1 + iteration % 3) * a for a in (dx, dr))
+            x, r, point = self._line_search(step, x, r, point, dx, dr)
+        else:
+            # stalled on a stick-slip kink within STALL: accepted, as the star Newton does
+            if not point.converged and point.error > STALL:
+                raise _NotConverged(point.error, cap, f"Newton did not converge in {cap} iterations")
+        self.interface.residual = max(self.interface.residual, point.error)
+        self._commit(step, point, x, r)
+
+    def _step_data(self, h):
+        """The _Step of an attempt of length h from the current state."""
         th = self.theta
         if hasattr(self.model, "h"):
             self.model.h = h  # the viscous damage update integrates over the step actually taken
@@ -290,26 +316,7 @@ class Theta:
         if self.contact:
             step.mu, step.shift = self.model.friction(state_n), self.model.shift(state_n)
             step.cohesion_T = self.model.shear_cohesion(state_n)
-        x = self._x_last * (h / self._h_last) if self._h_last else np.zeros(self.owned.stop)
-        r = np.where(self._frozen, 0.0, self.r) if self.contact else self.r
-        point = self._evaluate(step, x, r)
-        cap = self.interface.max_iterations
-        for iteration in range(1, cap + 1):
-            if point.converged:
-                break
-            dz = self._solve(step, point)
-            dx = dz[:len(x)]
-            dr = step.sigma[:, None] * dz[len(x):].reshape(-1, self.d) if self.contact else 0.0
-            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps (as the star Newton)
-                dx, dr = (0.5 ** (1 + iteration % 3) * a for a in (dx, dr))
-            x, r, point = self._line_search(step, x, r, point, dx, dr)
-            self.interface.iterations += 1
-        else:
-            # stalled on a stick-slip kink within STALL: accepted, as the star Newton does
-            if not point.converged and point.error > STALL:
-                raise _NotConverged(point.error, cap, f"Newton did not converge in {cap} iterations")
-        self.interface.residual = max(self.interface.residual, point.error)
-        self._commit(step, point, x, r)
+        return step
 
     def _line_search(self, step, x, r, point, dx, dr, backtracks=4):
         """Backtracking on the residual norm; when no shorter step lowers it, the full step
@@ -349,8 +356,9 @@ class Theta:
         f = self.force.x.array
         f[:] = self.jump.BT @ (self.w[:, None] * np.einsum("lai,la->li", self.frame, t)).ravel()
         if self.rebars is not None:
-            f_bars, point.k_bars = self.rebars.forces(self.u.x.array + th * du, commit=False, counted_only=True)
-            f -= f_bars
+            u_n = self.u.x.array
+            point.bars = self.rebars.step(u_n, u_n + du)
+            f -= self.rebars.step_forces(point.bars, counted_only=True)
         compat.scatter_reverse_add(self.force)
         inertia = self.m[own] * x
         load = h * step.p_theta * self.load_vector
@@ -398,16 +406,13 @@ class Theta:
             gap = m_l * np.matmul(Jg, R)
             values.update(impulse=np.stack([-RT, RT]), gap=np.stack([gap, -gap]), reaction=m_l * Jr,
                           frozen=np.where(self._frozen, self.m_link[:, None], 0.0))
-        if self.rebars is not None:  # L k b b^T of each counted segment, b its row of B
-            bars, counted = self.rebars, self.rebars.counted
-            b = bars.coef[counted]
-            k = th * th * h * h * (bars.L * point.k_bars)[counted]
-            values["rebar"] = k[:, None, None] * b[:, :, None] * b[:, None, :]
+        if self.rebars is not None:  # d(force)/dx = h d(force)/du_{n+1} theta h: material and geometric
+            values["rebar"] = th * h * h * self.rebars.step_blocks(point.bars)
         return np.concatenate([values[k].ravel() for k in self._blocks]) * self._keep
 
-    def _solve(self, step, point):
-        """One Newton correction: refactor only when the Jacobian changed anywhere (the
-        springs' alone depends on h only)."""
+    def _factorise(self, step, point):
+        """Assemble the Jacobian at ``point``; PETSc refactorises at the next solve, and not
+        at all when no entry changed on any rank (the springs' part depends on h only)."""
         if self.contact or self.rebars is not None or step.h != self._assembled_h:
             values = np.bincount(self._slot, weights=self._values(step, point), minlength=len(self._rows))
             changed = self._last_values is None or not np.array_equal(values, self._last_values)
@@ -416,24 +421,32 @@ class Theta:
                 self.A.setValuesIJV(*self._csr[:2], values, addv=PETSc.InsertMode.ADD_VALUES, rowmap=self._csr[2])
                 self.A.assemble()
                 self._last_values = values
-            self._assembled_h = step.h
+        self._assembled_h = step.h
+
+    def _correction(self, step, point, dz):
+        """(dx, dr): the velocity and reaction parts of a solution dz of the scaled system."""
+        n_x = self.owned.stop
+        dz[:n_x][self._fixed[self.owned]] = 0.0
+        dr = step.sigma[:, None] * dz[n_x:].reshape(-1, self.d) if self.contact else 0.0
+        return dz[:n_x], dr
+
+    def _solve(self, point):
+        """Solve the last assembled Jacobian against -F(point)."""
         self._rhs.array[:] = -point.F
         for _ in range(MUMPS_RELAXATIONS + 1):
             try:
                 self.ksp.solve(self._rhs, self._dz)
             except PETSc.Error as err:
-                self._last_values, self._assembled_h = None, None
+                self._last_values = self._assembled_h = None
                 raise _NotConverged(point.error, self.interface.iterations, f"linear solve failed: {err}") from None
             reason = self.ksp.getConvergedReason()
             if reason >= 0 or not self._mumps_short_of_workspace():
                 break
         if reason < 0:
-            self._last_values = self._assembled_h = None  # a failed factorisation is not reused
+            self._last_values = self._assembled_h = None  # not reused
             raise _NotConverged(point.error, self.interface.iterations,
                                 f"linear solve failed: {KSP_REASONS.get(reason, reason)}")
-        dz = self._dz.array.copy()
-        dz[:self.owned.stop][self._fixed[self.owned]] = 0.0
-        return dz
+        return self._dz.array.copy()
 
     def _mumps_short_of_workspace(self):
         """After a failed factorisation: if MUMPS ran out of workspace (INFOG(1) = -8, -9:
@@ -461,12 +474,9 @@ class Theta:
         law = point.law
         D = link_blocks(law.dr_N_dg_N, law.dr_N_dg_T, law.dr_T_dg_N, law.dr_T_dg_T)
         spring_work = self.w @ np.einsum("li,lij,lj->l", dg, D, dg)
-        if self.rebars is not None:
-            bars = self.rebars
-            d_eps = bars.B @ du
-            spring_work += np.sum((bars.L * point.k_bars * d_eps**2)[bars.counted])
-            bars.forces(self.u.x.array + du, commit=True)
         self.numerical += (th - 0.5) * (x @ (self.m[own] * x) + du[own] @ (self.bulk.K_cells @ du[own]) + spring_work)
+        if self.rebars is not None:
+            self.numerical += self._accept_bars(point.bars, du)
         self.work += step.p_theta * self.load_vector @ du[own]
         if self.contact:
             g = point.g_end
@@ -480,6 +490,16 @@ class Theta:
         self._g = point.g_end
         self._x_last, self._h_last = x, h
         self.t += h
+
+    def _accept_bars(self, step, du):
+        """Accept the bars' state at u_{n+1} = u_n + du and return what the work of their
+        step forces leaves out of their state functions (J, this rank's counted segments):
+        the elastic energy change and the plastic work take all of it (rebar.py's discrete
+        gradient), so this is round-off, booked to keep the balance exact."""
+        bars, u_n = self.rebars, self.u.x.array
+        energy_n, plastic_n = bars.elastic_energy(u_n), bars.plastic_work
+        bars.accept(step.end)
+        return bars.work(step, du) - (bars.elastic_energy(u_n + du) - energy_n) - (bars.plastic_work - plastic_n)
 
     def _book_reactions(self, step, r, dg):
         """Split the work of the step's reactions -w r.dg (J/m^2 per link) as the star Newton
@@ -504,7 +524,7 @@ class Theta:
                           self.w @ self.model.stored_energy(g[:, 0], g[:, 1:]),
                           self.w @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                           np.count_nonzero(self.model.broken()), self.numerical,
-                          self.rebars.stored_energy(u_all, u_all) if self.rebars else 0.0,
+                          self.rebars.elastic_energy(u_all) if self.rebars else 0.0,
                           self.rebars.plastic_work if self.rebars else 0.0])
         total = self.comm.allreduce(local, op=MPI.SUM)
         return Energies(*total[:6], int(total[6]), total[7], rebar=total[8], plastic=total[9])
@@ -524,7 +544,7 @@ class _Point:
     def __init__(self, g_end, g_theta):
         self.g_end, self.g_theta = g_end, g_theta
         self.law = self.jac = self.F = None
-        self.k_bars = None  # the bars' tangents dN/deps (N), with rebars
+        self.bars = None  # the bars' rebar.CableStep to u_{n+1}, with rebars
         self.norm = self.error = 0.0
         self.converged = False
 
