@@ -169,8 +169,9 @@ class Rebars:
         X = space.x
         self.weights = np.column_stack([-barycentric(X[space.cell_dofs[ca]], node.x[a]),
                                         barycentric(X[space.cell_dofs[cb]], node.x[b])])
-        self.comps = np.concatenate([space.components(space.cell_dofs[ca][:, :, None]).reshape(n, -1),
-                                     space.components(space.cell_dofs[cb][:, :, None]).reshape(n, -1)], axis=1)
+        per_cell = (d + 1) * d  # explicit: a rank may hold no segment
+        self.comps = np.concatenate([space.components(space.cell_dofs[ca][:, :, None]).reshape(n, per_cell),
+                                     space.components(space.cell_dofs[cb][:, :, None]).reshape(n, per_cell)], axis=1)
         shape = (n, 2 * (d + 1), d)
         rows = np.broadcast_to(np.arange(n)[:, None, None] * d + np.arange(d), shape)
         self.C = sp.csr_matrix((np.broadcast_to(self.weights[:, :, None], shape).ravel(),
@@ -304,7 +305,7 @@ class Rebars:
         C_j^T C_j: d copies, one per axis, of a scalar operator whose eigenvalues Gershgorin
         bounds on the segments' coupling matrix."""
         n = len(self.L)
-        first_axis = self.comps.reshape(n, -1, self.d)[:, :, 0]
+        first_axis = self.comps.reshape(n, 2 * (self.d + 1), self.d)[:, :, 0]
         S = sp.csr_matrix(((np.sqrt(self.E_s * self.area / self.L)[:, None] * self.weights).ravel(),
                            first_axis.ravel(), np.arange(0, first_axis.size + 1, first_axis.shape[1])),
                           shape=(n, len(m)))

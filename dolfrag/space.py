@@ -44,7 +44,9 @@ class Space:
     def components(self, dofs):
         """Flat indices of all components of ``dofs``: shape (..., k) -> (..., k * gdim)."""
         dofs = np.asarray(dofs)
-        return (self.gdim * dofs[..., None] + np.arange(self.gdim)).reshape(*dofs.shape[:-1], -1)
+        # explicit last axis: -1 cannot be inferred for an empty array (a rank without any)
+        flat = self.gdim * dofs[..., None] + np.arange(self.gdim)
+        return flat.reshape(*dofs.shape[:-1], dofs.shape[-1] * self.gdim)
 
     @property
     def vertex_x(self):
