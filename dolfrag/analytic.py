@@ -355,3 +355,25 @@ def plate_deflection(q, a, b, D, supports):
     if supports == "simple":
         return simply_supported_plate_deflection(q, a, b, D)
     raise ValueError(f"supports must be 'clamped' or 'simple', got {supports!r}")
+
+
+def catenary_sag_elastic(q, span, E_s, area):
+    """Midspan sag (m) of an initially straight, unstressed elastic cable pinned at both
+    ends a distance ``span`` (m) apart, under a uniform transverse load q (N/m; N/m per
+    metre of depth in 2D with ``area`` per metre): the taut-cable (membrane) cubic.
+
+    Small sag: the shape is the parabola y = q x (span - x) / (2 H), H the horizontal
+    tension; its strain (1 / span) int 1/2 y'^2 dx = q^2 span^2 / (24 H^2) gives
+    H = E_s A eps, i.e. H^3 = E_s A q^2 span^2 / 24 (Irvine, Cable Structures, 1981,
+    a taut flat cable), and w = q span^2 / (8 H) = (3 q span^4 / (64 E_s A))^(1/3).
+    Neglects O((w / span)^2): the tension's variation H / cos(phi) and higher slopes."""
+    return (3 * q * span**4 / (64 * E_s * area)) ** (1 / 3)
+
+
+def catenary_sag_plastic(q, span, area, f_y):
+    """Midspan sag (m) of a cable pinned at both ends ``span`` (m) apart once it yields
+    under a uniform transverse load q (N/m): the parabola's horizontal tension is held at
+    A f_y, so w = q span^2 / (8 A f_y) (small sag, as catenary_sag_elastic). Valid when the
+    elastic sag's strain 8 w^2 / (3 span^2) exceeds f_y / E_s: the elastic cable would
+    yield first."""
+    return q * span**2 / (8 * area * f_y)

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, space as spaces, supports
+from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -81,7 +81,7 @@ def _setup(case, comm):
     bulk_ops = bulk.assemble(space, domain, case)
     bars = None
     if case.rebar.faces:
-        lines, areas = rebar.layer_polylines(case.rebar, case.geometry, space.gdim)
+        lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
         bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm)
         bars.add_mass(bulk_ops.m.x.array)
         # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only

@@ -44,9 +44,9 @@ class Space:
     def components(self, dofs):
         """Flat indices of all components of ``dofs``: shape (..., k) -> (..., k * gdim)."""
         dofs = np.asarray(dofs)
-        # the width given, not -1: a rank may hold none of the dofs (e.g. of a clamped face)
-        width = dofs.shape[-1] * self.gdim
-        return (self.gdim * dofs[..., None] + np.arange(self.gdim)).reshape(*dofs.shape[:-1], width)
+        # explicit last axis: -1 cannot be inferred for an empty array (a rank without any)
+        flat = self.gdim * dofs[..., None] + np.arange(self.gdim)
+        return flat.reshape(*dofs.shape[:-1], dofs.shape[-1] * self.gdim)
 
     @property
     def vertex_x(self):

@@ -210,3 +210,14 @@ def test_plate_rigidity_is_E_t3_over_12_1_minus_nu2():
     assert analytic.plate_rigidity(35e9, 0.1, 0.2) == pytest.approx(35e9 * 1e-3 / 11.52, rel=1e-12)
     with pytest.raises(ValueError, match="clamped"):
         analytic.plate_deflection(1.0, 1.0, 1.0, 1.0, "rollers")
+
+
+def test_catenary_sags_balance_the_parabola_tension_against_the_cable_stretch():
+    # a taut cable's parabola: H = q L^2 / (8 w), strain 8 w^2 / (3 L^2) (small sag); the
+    # elastic sag makes H = E A strain, the plastic one H = A f_y (round-off only)
+    q, L, E_s, A, f_y = 2e4, 1.2, 200e9, 5.2e-4, 5e8
+    w = analytic.catenary_sag_elastic(q, L, E_s, A)
+    assert q * L**2 / (8 * w) == pytest.approx(E_s * A * 8 * w**2 / (3 * L**2), rel=1e-12)
+    assert q * L**2 / (8 * analytic.catenary_sag_plastic(q, L, A, f_y)) == pytest.approx(A * f_y, rel=1e-12)
+    # the taut-cable cubic H^3 = E A q^2 L^2 / 24 (Irvine 1981)
+    assert (q * L**2 / (8 * w)) ** 3 == pytest.approx(E_s * A * q**2 * L**2 / 24, rel=1e-12)

@@ -192,3 +192,66 @@ def test_a_case_runs_with_time_scheme_theta_at_the_step_set_by_accuracy(tmp_path
     # theta > 1/2 damps: its numerical dissipation is a column and closes the balance
     assert history["D_numerical_J"][-1] > 0
     assert np.abs(history["balance_error_J"]).max() < 1e-10 * history["W_external_J"].max()
+
+
+def test_theta_jacobian_with_turning_bars_is_the_derivative_of_its_residual():
+    """The assembled step matrix (bulk, springs, and the bars' step tangent: material and
+    geometric, not symmetric) against central differences of the momentum residual, at a
+    state with the bars turned and stretched (some yielding, some slack). Linear springs:
+    the bars are the only nonlinearity."""
+    case = load_case("wall-bending-clamped", ["geometry.length=0.3", "mesh.size=0.05"])
+    domain, space, links, rccm, _, _ = setup(case, MPI.COMM_SELF)
+    springs = models.Elastic(len(links), rccm.model.C_N, rccm.model.C_T)
+    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
+    fixed = supports.constrained_components(space, domain, case.supports)
+    integ = Theta(space, rccm.bulk, rccm.jump, springs, load, rccm.pressure, rccm.h, 0.5, fixed, rebars=rccm.rebars)
+    # a large rigid turn, plus a wave straining the chords by a few 1e-3
+    X, angle = space.x, 0.3  # rad
+    u = integ.u.x.array
+    u[0::2] = (np.cos(angle) - 1) * X[:, 0] - np.sin(angle) * X[:, 1] + 1e-4 * np.sin(60 * X[:, 0] + 1)
+    u[1::2] = np.sin(angle) * X[:, 0] + (np.cos(angle) - 1) * X[:, 1] + 1e-4 * np.cos(48 * X[:, 0] + 42 * X[:, 1])
+    v = integ.v.x.array  # turning the body by another 0.05 rad (exactly) over the step
+    turn = angle + 0.05
+    v[0::2] = ((np.cos(turn) - np.cos(angle)) * X[:, 0] - (np.sin(turn) - np.sin(angle)) * X[:, 1]) / integ.h
+    v[1::2] = ((np.sin(turn) - np.sin(angle)) * X[:, 0] + (np.cos(turn) - np.cos(angle)) * X[:, 1]) / integ.h
+    step = integ._step_data(integ.h)
+    x = 1e-2 * np.random.default_rng(3).standard_normal(integ.owned.stop)  # m/s: jumps of ~1e-7 m too
+    point = integ._evaluate(step, x, integ.r)
+    integ._factorise(step, point)
+    state = point.bars.end
+    assert np.count_nonzero(state.k > 0) > 3 and np.count_nonzero(state.N == 0) > 3
+    assert np.count_nonzero((state.N > 0) & (state.k == 0)) > 3  # yielding
+    A = integ.A.convert("dense").getDenseArray()
+    free = np.flatnonzero(~integ._fixed[integ.owned])
+    dx = 1e-6  # m/s: u_theta moves by theta^2 h dx = 2.5e-11 m, strains by 1e-9, off every kink here
+    worst = 0.0
+    for i in np.intersect1d(np.unique(integ.rebars.comps), free):
+        e = np.zeros_like(x)
+        e[i] = dx
+        column = (integ._evaluate(step, x + e, integ.r).F - integ._evaluate(step, x - e, integ.r).F) / (2 * dx)
+        worst = max(worst, np.abs(column[free] - A[free, i]).max())
+    # round-off of F over dx: the turned linear bulk carries forces ~1e5 N s, so ~1e-11 / dx
+    # ~ 1e-5 here, 1e-8 of the matrix scale; central differences err by O(dx^2) besides
+    assert worst < 1e-6 * np.abs(A).max()
+
+
+def test_reusing_the_factorisation_in_hand_changes_the_work_not_the_answer():
+    """Newton first tries the last factorisation (an older Jacobian) when few links changed
+    state, and keeps its correction only if it divides the residual by 10: the same steps to
+    the solver's tolerance, with fewer Jacobians assembled."""
+    runs = {}
+    for reuse in (True, False):
+        integ, _, _ = build([*COARSE, *INTACT_RCCM], h_factor=3.0)
+        if not reuse:
+            integ._reusable = lambda iteration, h, point: False
+        assembled = []
+        factorise = integ._factorise
+        integ._factorise = lambda step, point: assembled.append(1) or factorise(step, point)
+        history = [integ.step(energies=True) for _ in range(16)]
+        runs[reuse] = integ.u.x.array.copy(), history, len(assembled)
+    (u_reuse, h_reuse, n_reuse), (u_fresh, h_fresh, n_fresh) = runs[True], runs[False]
+    assert n_reuse < n_fresh
+    # both stop at 1e-10 of the momentum scale: the displacements agree to ~1e-10 of theirs
+    assert np.abs(u_reuse - u_fresh).max() < 1e-8 * np.abs(u_fresh).max()
+    work = max(e.external_work for e in h_fresh)
+    assert max(abs(e.balance_error) for e in h_reuse) < 1e-10 * work

@@ -13,8 +13,9 @@ step's contact impulse:
 u_theta = theta u_{n+1} + (1 - theta) u_n; g = R B u the link jumps in the link frames R
 (interface/jumps.py, links.py); w the link weights; t the cohesive traction of the model
 with its damage lagged by one step (interface/models.py: each step problem is monotone),
-plus the bars' forces B_r^T (L N) at u_theta when there are rebars (rebar.py; their tangent
-joins K, and their elastic energy and yield dissipation join the balance);
+plus the bars' step forces C^T (N m) when there are rebars (rebar.py: the mean force over
+the step's strain path along the mean chord, a discrete gradient; its tangent in u_{n+1},
+material and geometric, not symmetric, joins the matrix);
 p_theta = theta p(t_{n+1}) + (1 - theta) p(t_n) the pressure on the load vector l; phi the
 Alart-Curnier projection (interface/contact.py): Signorini on the end-of-step gap, Coulomb
 with mu(state_n) on the step's slip, no penalty. With linear forces Newton's matrix is
@@ -33,17 +34,23 @@ g_N >= 0 at the ends of the steps), the step obeys exactly
     D_num = (theta - 1/2) (x.M x + du.K du + sum w dg.D dg) >= 0,  du = u_{n+1} - u_n
 
 so theta = 1/2 conserves energy (trapezoidal rule) and theta > 1/2 damps the high
-frequencies: D_num is reported as its own number (Energies.numerical). The energy
+frequencies: D_num is reported as its own number (Energies.numerical). The bars add
+Delta E_rebar + D_rebar_plastic on the left: the work of their step forces, exactly (any
+round-off rest is booked in D_num). The energy
 released by damage is booked at g_{n+1} by model.store, where this scheme stores it; for
 the rigid laws (threshold, linear softening) the cohesive part of the constraint reactions'
 work is stored in the links (model.absorb), split from D_contact as the star Newton does.
 
 Newton. A backtracking line search on the residual norm; damped steps after CYCLE
 iterations (active-set cycles); on sticking links, REGULARISATION on the reaction diagonal
-(rigid constraints around a vertex are redundant; the residual stays exact). The Jacobian is
-refactorised only when it changed. A step Newton cannot finish in max_iterations is cut
-into two half steps, recursively max_cuts times, before ConvergenceError is raised with the
-state left at t_n. Parallel: owned rows are owned dof components (dolfinx's layout) and
+(rigid constraints around a vertex are redundant; the residual stays exact), and a stronger
+one on all links in contact once a sub-step needs more than a few iterations. The factorisation
+is what costs (~75 % of a run): an iteration first tries the one in hand while almost no
+link or bar changed state (STALE_CONTRACTION), and the Jacobian is refactorised only when
+it changed. A step Newton cannot finish in max_iterations is cut into two half steps,
+recursively max_cuts times (the next steps start from the halving the last one needed),
+then given LAST_RESORT times the iterations once, before ConvergenceError is raised with
+the state left at the start of that sub-step. Parallel: owned rows are owned dof components (dolfinx's layout) and
 owned links (vertex owner); off-process contributions go through PETSc's assembly, ghost
 values through dolfinx scatters; the answer does not depend on the rank count beyond
 solver round-off.
@@ -64,6 +71,35 @@ from dolfrag.solver.semismooth import CYCLE, REGULARISATION, STALL
 
 # Doublings of MUMPS' workspace relaxation tried when a factorisation runs out of it.
 MUMPS_RELAXATIONS = 6
+# A Newton correction from the factorisation in hand (an older Jacobian of the same step
+# length) is taken when it divides the scaled residual by 10 at least; else the Jacobian
+# is assembled and factorised at the current iterate. That is tried only while at most
+# STALE_STATES of the links and bars are in another state (open, stick, slip; slack,
+# taut, yielding) than where it was assembled: a semi-smooth Newton step with a stale
+# active set sends the iterates astray (measured on wall-bending-clamped from 20 ms: 228
+# iterations and a cut with any state changed, 162 with none, 180 without reuse; over 100
+# elastic steps, 19 factorisations at 0.002 and 74 at 0).
+STALE_CONTRACTION = 0.1
+STALE_STATES = 0.002
+# The regularisation of redundant contact rows in a sub-step (a step Newton could not
+# finish whole, or one started at the last step's halving), from its REGULARISE_AFTER-th
+# iteration on, while the scaled residual is above NEAR: a sticking or closed link whose
+# constraint is redundant takes reactions of ~1/REGULARISATION times its residual from a
+# Newton step; at 1e-6 Newton cycled between such reactions down to h/16 (measured twice at
+# 34-36 ms of wall-bending-clamped: both sub-steps converge from the 5th iteration at 1e-3,
+# one still fails from the 10th). Near the solution the active set has settled, and 1e-3
+# would only slow the last digits down (a full run stalled at 3e-8 after 30 iterations;
+# measured). Not in whole steps: there it slowed the cracking RCCM bar of tests/mpi_theta.py
+# from 7-11 to 12-58 iterations a step and made one rank cut a step the other did not.
+CYCLE_REGULARISATION = 1e-3
+REGULARISE_AFTER = 5
+NEAR = 1e-4
+# A sub-step that does not converge at the last halving gets LAST_RESORT times the
+# iterations once (stick-slip cycles of a few links: one needed 94 iterations at h/16, at
+# 37.7 ms of wall-bending-clamped; measured) before ConvergenceError.
+LAST_RESORT = 4
+# Steps without a halving before the sub-steps are made twice as long again.
+RELAX_AFTER = 4
 
 KSP_REASONS = {getattr(PETSc.KSP.ConvergedReason, k): k for k in dir(PETSc.KSP.ConvergedReason)
                if not k.startswith("_")}
@@ -130,6 +166,7 @@ class Theta:
         self.rebars = rebars
         self.pressure, self.h, self.theta = pressure, h, theta
         self.max_cuts = max_cuts
+        self._depth = self._deepest = self._calm = 0  # sub-step halvings: the next step's, this step's deepest
         self.comm = space.mesh.comm
         self.timer = PhaseTimer()
         self.u, self.v, self.x, self.force = (compat.Function(space.V) for _ in range(4))
@@ -243,8 +280,8 @@ class Theta:
         if self.contact:  # a saddle point with zero pivots: MUMPS' pivoting LU
             pc.setType("lu")
             pc.setFactorSolverType("mumps")
-        else:  # W symmetric positive definite
-            pc.setType("cholesky")
+        else:  # W positive definite; symmetric but for the bars' step tangent
+            pc.setType("cholesky" if self.rebars is None else "lu")
             # serial: PETSc's own factor solves 4x faster than MUMPS (10 against 40 ms at
             # 72k unknowns, measured); in parallel MUMPS is the distributed one
             pc.setFactorSolverType("petsc" if comm.size == 1 else "mumps")
@@ -254,7 +291,7 @@ class Theta:
         ksp.setFromOptions()
         self.A, self.ksp = A, ksp
         self._rhs, self._dz = A.createVecs()
-        self._last_values, self._assembled_h = None, None
+        self._last_values = self._assembled_h = self._factored_status = None
 
     @property
     def energy_time(self):
@@ -263,12 +300,25 @@ class Theta:
 
     # ------------------------------------------------------------------ one step
     def step(self, energies=False):
-        """Advance from t_n to t_n + h (cut into sub-steps if Newton needs it). With
-        ``energies``, return the Energies at t_{n+1} (collective), else None."""
+        """Advance from t_n to t_n + h as 2^k sub-steps, k the halvings the last steps
+        needed (each sub-step halved further while Newton needs it, k back down by one
+        after RELAX_AFTER steps without a halving): a step Newton cannot finish costs
+        max_iterations iterations, and once cracks spread most steps need the same cuts
+        as the one before. With ``energies``, return the Energies at t_{n+1}
+        (collective), else None."""
         self.interface.iterations = self.interface.cuts = 0
         self.interface.residual = 0.0
         self.timer.start()
-        self._advance(self.h, 0)
+        start = self._deepest = self._depth
+        for _ in range(2**start):
+            self._advance(self.h / 2**start, start)
+        self.interface.cuts -= 1  # sub-steps beyond the first
+        if self._deepest > start:
+            self._depth, self._calm = self._deepest, 0
+        elif start:
+            self._calm += 1
+            if self._calm == RELAX_AFTER:
+                self._depth, self._calm = start - 1, 0
         self.n += 1
         self.timer.lap("implicit")
         if not energies:
@@ -279,16 +329,66 @@ class Theta:
 
     def _advance(self, h, depth):
         try:
-            self._substep(h)
+            self._substep(h, escalate=depth > 0)
         except _NotConverged as failure:
-            if depth == self.max_cuts:
+            if depth < self.max_cuts:
+                self._advance(h / 2, depth + 1)
+                self._advance(h / 2, depth + 1)
+                return
+            try:  # the last resort before giving up: LAST_RESORT times the iterations
+                self._substep(h, LAST_RESORT * self.interface.max_iterations, escalate=True)
+            except _NotConverged:
                 raise ConvergenceError(self.t, h, failure.residual, failure.iterations, failure.reason) from None
-            self.interface.cuts += 1
-            self._advance(h / 2, depth + 1)
-            self._advance(h / 2, depth + 1)
+        self.interface.cuts += 1
+        self._deepest = max(self._deepest, depth)
 
-    def _substep(self, h):
-        """Newton on (x, r) for one step of length h; commits only once converged."""
+    def _substep(self, h, cap=None, escalate=False):
+        """Newton on (x, r) for one step of length h, at most ``cap`` iterations (default
+        max_iterations), with CYCLE_REGULARISATION once it needs many if ``escalate``;
+        commits only once converged."""
+        step = self._step_data(h)
+        x = self._x_last * (h / self._h_last) if self._h_last else np.zeros(self.owned.stop)
+        r = np.where(self._frozen, 0.0, self.r) if self.contact else self.r
+        point = self._evaluate(step, x, r)
+        cap = cap or self.interface.max_iterations
+        for iteration in range(1, cap + 1):
+            if point.converged:
+                break
+            self.interface.iterations += 1
+            if self._reusable(iteration, h, point):  # the factorisation in hand first
+                dx, dr = self._correction(step, point, self._solve(point))
+                trial = self._evaluate(step, x + dx, r + dr)
+                if trial.converged or trial.error <= STALE_CONTRACTION * point.error:
+                    x, r, point = x + dx, r + dr, trial
+                    continue
+            far = escalate and iteration >= REGULARISE_AFTER and point.error > NEAR
+            step.regularisation = CYCLE_REGULARISATION if far else REGULARISATION
+            self._factorise(step, point)
+            dx, dr = self._correction(step, point, self._solve(point))
+            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps (as the star Newton)
+                dx, dr = (0.5 ** (1 + iteration % 3) * a for a in (dx, dr))
+            x, r, point = self._line_search(step, x, r, point, dx, dr)
+        else:
+            # stalled on a stick-slip kink within STALL: accepted, as the star Newton does
+            if not point.converged and point.error > STALL:
+                raise _NotConverged(point.error, cap, f"Newton did not converge in {cap} iterations")
+        self.interface.residual = max(self.interface.residual, point.error)
+        self._commit(step, point, x, r)
+
+    def _reusable(self, iteration, h, point):
+        """Whether Newton's iteration tries the factorisation in hand (STALE_CONTRACTION):
+        of the same step length, assembled where every link and bar was in the same state
+        (open, stick, slip; slack, taut, yielding) as at ``point``, so that only the smooth
+        parts of the Jacobian moved. Collective."""
+        if not (iteration <= CYCLE and self._assembled_h == h and self._factored_status is not None):
+            return False
+        changed = sum(np.count_nonzero(a != b) for a, b in zip(point.status, self._factored_status))
+        total = sum(len(a) for a in point.status)
+        changed, total = self.comm.allreduce(np.array([changed, total]))
+        return changed <= STALE_STATES * total
+
+    def _step_data(self, h):
+        """The _Step of an attempt of length h from the current state."""
         th = self.theta
         if hasattr(self.model, "h"):
             self.model.h = h  # the viscous damage update integrates over the step actually taken
@@ -298,26 +398,7 @@ class Theta:
         if self.contact:
             step.mu, step.shift = self.model.friction(state_n), self.model.shift(state_n)
             step.cohesion_T = self.model.shear_cohesion(state_n)
-        x = self._x_last * (h / self._h_last) if self._h_last else np.zeros(self.owned.stop)
-        r = np.where(self._frozen, 0.0, self.r) if self.contact else self.r
-        point = self._evaluate(step, x, r)
-        cap = self.interface.max_iterations
-        for iteration in range(1, cap + 1):
-            if point.converged:
-                break
-            dz = self._solve(step, point)
-            dx = dz[:len(x)]
-            dr = step.sigma[:, None] * dz[len(x):].reshape(-1, self.d) if self.contact else 0.0
-            if iteration > CYCLE:  # break active-set cycles: shorter, varying steps (as the star Newton)
-                dx, dr = (0.5 ** (1 + iteration % 3) * a for a in (dx, dr))
-            x, r, point = self._line_search(step, x, r, point, dx, dr)
-            self.interface.iterations += 1
-        else:
-            # stalled on a stick-slip kink within STALL: accepted, as the star Newton does
-            if not point.converged and point.error > STALL:
-                raise _NotConverged(point.error, cap, f"Newton did not converge in {cap} iterations")
-        self.interface.residual = max(self.interface.residual, point.error)
-        self._commit(step, point, x, r)
+        return step
 
     def _line_search(self, step, x, r, point, dx, dr, backtracks=4):
         """Backtracking on the residual norm; when no shorter step lowers it, the full step
@@ -343,7 +424,7 @@ class Theta:
         g_theta = self._g + th * (g_end - self._g)
         point = _Point(g_end, g_theta)
         if self.contact:
-            phi_N, phi_T, point.jac, _ = contact_friction_projection(
+            phi_N, phi_T, point.jac, status = contact_friction_projection(
                 r[:, 0], r[:, 1:], g_end[:, 0], g_end[:, 1:] - self._g[:, 1:], step.rho, step.rho, step.mu,
                 step.shift, step.cohesion_T)
             phi = np.where(self._frozen, 0.0, (h * self.w)[:, None] * np.column_stack([phi_N, phi_T]))
@@ -351,14 +432,18 @@ class Theta:
             # holds; round-off makes that +-1e-20 m, and the sign would flip the spring's
             # tangent at random (Newton cycles, refactorisations): the law is read at |g_N|.
             closed = point.jac.dN_drN == 0
+            point.status.append(status)
             g_theta = np.column_stack([np.where(closed, np.abs(g_theta[:, 0]), g_theta[:, 0]), g_theta[:, 1:]])
         law = point.law = self._cohesion(g_theta, step.state_n)
         t = np.column_stack([law.r_N, law.r_T]) - r  # Pa, tension positive
         f = self.force.x.array
         f[:] = self.jump.BT @ (self.w[:, None] * np.einsum("lai,la->li", self.frame, t)).ravel()
         if self.rebars is not None:
-            f_bars, point.k_bars = self.rebars.forces(self.u.x.array + th * du, commit=False, counted_only=True)
-            f -= f_bars
+            u_n = self.u.x.array
+            point.bars = self.rebars.step(u_n, u_n + du)
+            end = point.bars.end  # slack, taut, yielding; each segment once, from the rank counting it
+            point.status.append(((end.N > 0) + (end.k == 0))[self.rebars.counted])
+            f -= self.rebars.step_forces(point.bars, counted_only=True)
         compat.scatter_reverse_add(self.force)
         inertia = self.m[own] * x
         load = h * step.p_theta * self.load_vector
@@ -395,27 +480,30 @@ class Theta:
             jac, m_l = point.jac, self.m_link[:, None, None]
             Jg = link_blocks(jac.dN_dgN, jac.dN_dgT, jac.dT_dgN, jac.dT_dgT) / step.rho[:, None, None]
             Jr = link_blocks(jac.dN_drN, jac.dN_drT, jac.dT_drN, jac.dT_drT)
-            # Sticking links around a vertex are redundant constraints (their jumps sum to zero
-            # around it; semismooth.REGULARISATION): their tangential rows get REGULARISATION on
-            # the diagonal. The residual stays exact; Newton converges at that rate there. The
-            # normal rows alone are independent (the facets of a cell at a vertex have
-            # independent normals), so contact without stick keeps the exact Newton step.
+            # Links in contact around a vertex can be redundant constraints (their jumps sum
+            # to zero around it; semismooth.REGULARISATION): sticking links in their tangential
+            # rows, which get REGULARISATION on the diagonal, and, once cracks run straight
+            # through a vertex (facets with one normal on both sides), closed links in their
+            # normal rows, where Newton then cycled between reactions of +-1e9 Pa (measured at
+            # 35.5 ms of wall-bending-clamped, down to h/16). Once Newton needs more than a
+            # few iterations both get CYCLE_REGULARISATION; the normal rows not before, as
+            # their large reactions make any regularisation cost iterations (3 against 6 per
+            # elastic step, measured). The residual stays exact.
             stick = np.all(jac.dT_drT == 0, axis=(1, 2))
-            Jr[:, 1:, 1:] += REGULARISATION * stick[:, None, None] * np.eye(self.d - 1)
+            Jr[:, 1:, 1:] += step.regularisation * stick[:, None, None] * np.eye(self.d - 1)
+            if step.regularisation > REGULARISATION:
+                Jr[:, 0, 0] += step.regularisation * (jac.dN_drN == 0)
             RT = m_l * R.transpose(0, 2, 1)
             gap = m_l * np.matmul(Jg, R)
             values.update(impulse=np.stack([-RT, RT]), gap=np.stack([gap, -gap]), reaction=m_l * Jr,
                           frozen=np.where(self._frozen, self.m_link[:, None], 0.0))
-        if self.rebars is not None:  # L k b b^T of each counted segment, b its row of B
-            bars, counted = self.rebars, self.rebars.counted
-            b = bars.coef[counted]
-            k = th * th * h * h * (bars.L * point.k_bars)[counted]
-            values["rebar"] = k[:, None, None] * b[:, :, None] * b[:, None, :]
+        if self.rebars is not None:  # d(force)/dx = h d(force)/du_{n+1} theta h: material and geometric
+            values["rebar"] = th * h * h * self.rebars.step_blocks(point.bars)
         return np.concatenate([values[k].ravel() for k in self._blocks]) * self._keep
 
-    def _solve(self, step, point):
-        """One Newton correction: refactor only when the Jacobian changed anywhere (the
-        springs' alone depends on h only)."""
+    def _factorise(self, step, point):
+        """Assemble the Jacobian at ``point``; PETSc refactorises at the next solve, and not
+        at all when no entry changed on any rank (the springs' part depends on h only)."""
         if self.contact or self.rebars is not None or step.h != self._assembled_h:
             values = np.bincount(self._slot, weights=self._values(step, point), minlength=len(self._rows))
             changed = self._last_values is None or not np.array_equal(values, self._last_values)
@@ -424,24 +512,32 @@ class Theta:
                 self.A.setValuesIJV(*self._csr[:2], values, addv=PETSc.InsertMode.ADD_VALUES, rowmap=self._csr[2])
                 self.A.assemble()
                 self._last_values = values
-            self._assembled_h = step.h
+        self._assembled_h, self._factored_status = step.h, point.status
+
+    def _correction(self, step, point, dz):
+        """(dx, dr): the velocity and reaction parts of a solution dz of the scaled system."""
+        n_x = self.owned.stop
+        dz[:n_x][self._fixed[self.owned]] = 0.0
+        dr = step.sigma[:, None] * dz[n_x:].reshape(-1, self.d) if self.contact else 0.0
+        return dz[:n_x], dr
+
+    def _solve(self, point):
+        """Solve the last assembled Jacobian against -F(point)."""
         self._rhs.array[:] = -point.F
         for _ in range(MUMPS_RELAXATIONS + 1):
             try:
                 self.ksp.solve(self._rhs, self._dz)
             except PETSc.Error as err:
-                self._last_values, self._assembled_h = None, None
+                self._last_values = self._assembled_h = self._factored_status = None
                 raise _NotConverged(point.error, self.interface.iterations, f"linear solve failed: {err}") from None
             reason = self.ksp.getConvergedReason()
             if reason >= 0 or not self._mumps_short_of_workspace():
                 break
         if reason < 0:
-            self._last_values = self._assembled_h = None  # a failed factorisation is not reused
+            self._last_values = self._assembled_h = self._factored_status = None  # not reused
             raise _NotConverged(point.error, self.interface.iterations,
                                 f"linear solve failed: {KSP_REASONS.get(reason, reason)}")
-        dz = self._dz.array.copy()
-        dz[:self.owned.stop][self._fixed[self.owned]] = 0.0
-        return dz
+        return self._dz.array.copy()
 
     def _mumps_short_of_workspace(self):
         """After a failed factorisation: if MUMPS ran out of workspace (INFOG(1) = -8, -9:
@@ -469,12 +565,9 @@ class Theta:
         law = point.law
         D = link_blocks(law.dr_N_dg_N, law.dr_N_dg_T, law.dr_T_dg_N, law.dr_T_dg_T)
         spring_work = self.w @ np.einsum("li,lij,lj->l", dg, D, dg)
-        if self.rebars is not None:
-            bars = self.rebars
-            d_eps = bars.B @ du
-            spring_work += np.sum((bars.L * point.k_bars * d_eps**2)[bars.counted])
-            bars.forces(self.u.x.array + du, commit=True)
         self.numerical += (th - 0.5) * (x @ (self.m[own] * x) + du[own] @ (self.bulk.K_cells @ du[own]) + spring_work)
+        if self.rebars is not None:
+            self.numerical += self._accept_bars(point.bars, du)
         self.work += step.p_theta * self.load_vector @ du[own]
         if self.contact:
             g = point.g_end
@@ -488,6 +581,16 @@ class Theta:
         self._g = point.g_end
         self._x_last, self._h_last = x, h
         self.t += h
+
+    def _accept_bars(self, step, du):
+        """Accept the bars' state at u_{n+1} = u_n + du and return what the work of their
+        step forces leaves out of their state functions (J, this rank's counted segments):
+        the elastic energy change and the plastic work take all of it (rebar.py's discrete
+        gradient), so this is round-off, booked to keep the balance exact."""
+        bars, u_n = self.rebars, self.u.x.array
+        energy_n, plastic_n = bars.elastic_energy(u_n), bars.plastic_work
+        bars.accept(step.end)
+        return bars.work(step, du) - (bars.elastic_energy(u_n + du) - energy_n) - (bars.plastic_work - plastic_n)
 
     def _book_reactions(self, step, r, dg):
         """Split the work of the step's reactions -w r.dg (J/m^2 per link) as the star Newton
@@ -512,7 +615,7 @@ class Theta:
                           self.w @ self.model.stored_energy(g[:, 0], g[:, 1:]),
                           self.w @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                           np.count_nonzero(self.model.broken()), self.numerical,
-                          self.rebars.stored_energy(u_all, u_all) if self.rebars else 0.0,
+                          self.rebars.elastic_energy(u_all) if self.rebars else 0.0,
                           self.rebars.plastic_work if self.rebars else 0.0])
         total = self.comm.allreduce(local, op=MPI.SUM)
         return Energies(*total[:6], int(total[6]), total[7], rebar=total[8], plastic=total[9])
@@ -524,6 +627,7 @@ class _Step:
     def __init__(self, h, p_theta, state_n, rho, sigma):
         self.h, self.p_theta, self.state_n, self.rho, self.sigma = h, p_theta, state_n, rho, sigma
         self.mu = self.shift = self.cohesion_T = None
+        self.regularisation = REGULARISATION  # on the redundant rows of links in contact (_values)
 
 
 class _Point:
@@ -532,7 +636,8 @@ class _Point:
     def __init__(self, g_end, g_theta):
         self.g_end, self.g_theta = g_end, g_theta
         self.law = self.jac = self.F = None
-        self.k_bars = None  # the bars' tangents dN/deps (N), with rebars
+        self.bars = None  # the bars' rebar.CableStep to u_{n+1}, with rebars
+        self.status = []  # the links' contact states and the bars' regimes (int arrays)
         self.norm = self.error = 0.0
         self.converged = False
 
