@@ -360,6 +360,8 @@ class Rebar:
     direction: str = _f("str", "x", choices=("x", "y", "z", "xy", "xz", "yz"))  # bar axes (3D)
     E: float = _f("float", 2.0e11, bounds="> 0", unit="Pa")
     f_y: float | None = _f("float", None, bounds="> 0", unit="Pa")        # none: elastic
+    # rupture strain, total engineering strain (B500: A_gt >= 0.05); none: never ruptures
+    eps_u: float | None = _f("float", None, bounds="> 0", unit="-")
     rho: float = _f("float", 7850.0, bounds="> 0", unit="kg/m^3")
 
 

@@ -17,6 +17,11 @@ spring in the bar's length while elastic) acts along the current chord, n_j = c_
 the internal nodal forces are C_j^T (N_j n_j), the gradient of the elastic energy
 1/2 L N^2 / (E_s A), with the tangent C_j^T G_j C_j, G = (dN/deps) / L n n^T +
 N / |c| (I - n n^T): material and geometric (string) stiffness (``chord_tangent``).
+A segment whose accepted strain reaches the rupture strain eps_u (optional; B500 steel:
+A_gt >= 5 %, EN 1992-1-1 Annex C) breaks for good: it carries nothing from the next step
+on (lagged one step, as the interfaces' damage, so that each step problem stays smooth),
+and its elastic energy at that state, 1/2 L N^2 / (E_s A), is dissipated (``dissipated``
+= plastic work + the energy released by ruptures).
 The bars' mass rho_s A L is lumped onto the cell vertices with the same weights lambda_i.
 Units: m, Pa, N; in 2D a bar stands for a layer of bars ``spacing`` apart across the
 depth, so A is the steel area per metre of depth (m^2/m) and N is N per metre.
@@ -141,13 +146,14 @@ class Rebars:
     (rows segment-major, then axis); weights (n, 2(d+1)): C's coefficient of each vertex of
     cell a, then cell b (-lambda_a, lambda_b); comps (n, 2(d+1) d): those vertices' flat
     components; L (m) reference chord lengths; area (m^2, per metre of depth in 2D); E_s,
-    f_y (Pa); eps_p the accepted plastic strain; counted (bool, n): see the module docstring
-    (every local segment is touching); force_max, peak_force (N, per metre in 2D): the
-    largest axial force on this rank's segments at the last accepted state, and over the
-    run so far."""
+    f_y (Pa); eps_u (-) the rupture strain; eps_p the accepted plastic strain; ruptured
+    (bool, n) the broken segments; counted (bool, n): see the module docstring (every local
+    segment is touching); force_max, peak_force (N, per metre in 2D): the largest axial
+    force on this rank's segments at the last accepted state, and over the run so far."""
 
-    def __init__(self, space, lines, areas, E_s, f_y, rho_s, size, comm):
+    def __init__(self, space, lines, areas, E_s, f_y, rho_s, size, comm, eps_u=None):
         self.space, self.E_s, self.f_y, self.rho_s = space, E_s, (np.inf if f_y is None else f_y), rho_s
+        self.eps_u = np.inf if eps_u is None else eps_u
         self.comm = comm
         node = self.node = nodes(space, lines, size, comm)
         n_owned = space.n_owned_cells
@@ -178,7 +184,9 @@ class Rebars:
                                 (rows.ravel(), self.comps.ravel())), shape=(n * d, len(X) * d))
         self.CT = self.C.T.tocsr()
         self.eps_p = np.zeros(n)
-        self.plastic_work = 0.0  # J (J/m in 2D) dissipated on this rank's counted segments
+        self.ruptured = np.zeros(n, dtype=bool)
+        # J (J/m in 2D) dissipated on this rank's counted segments: by yield, by ruptures
+        self.plastic_work = self.rupture_work = 0.0
         self.peak_force = self.force_max = 0.0
         self._own = slice(0, space.n_owned_dofs * d)
         # the explicit scheme's work booking (stored_energy): owned rows at the last commit
@@ -189,6 +197,17 @@ class Rebars:
     def count(self):
         """Number of segments over all ranks. Collective."""
         return self.comm.allreduce(int(self.counted.sum()))
+
+    @property
+    def ruptures(self):
+        """Number of ruptured segments over all ranks. Collective."""
+        return self.comm.allreduce(int((self.ruptured & self.counted).sum()))
+
+    @property
+    def dissipated(self):
+        """Energy (J, J/m in 2D) this rank's counted segments dissipated: plastic work and
+        the elastic energy released by ruptures."""
+        return self.plastic_work + self.rupture_work
 
     def add_mass(self, m):
         """Lump the bars' mass onto the local dof components of ``m`` (kg; owned and ghost,
@@ -218,6 +237,7 @@ class Rebars:
         from the accepted plastic strain."""
         eps, c, ell = self.strain(u)
         N, eps_p, k = cable_force(eps, self.eps_p, self.E_s, self.area, self.f_y)
+        N, k = np.where(self.ruptured, 0.0, N), np.where(self.ruptured, 0.0, k)
         n_hat = np.divide(c, ell[:, None], out=np.zeros_like(c), where=ell[:, None] > 0)  # collapsed: slack
         return CableState(eps, n_hat, ell, N, k, eps_p)
 
@@ -227,6 +247,7 @@ class Rebars:
         eps_a, c_a, ell_a = self.strain(u_a)
         end = self.state(u_b)
         N, dN = mean_cable_force(eps_a, end.eps, self.eps_p, self.E_s, self.area, self.f_y)
+        N, dN = np.where(self.ruptured, 0.0, N), np.where(self.ruptured, 0.0, dN)
         sigma = ell_a + end.ell
         s = c_a + end.n_hat * end.ell[:, None]
         m_hat = np.divide(s, sigma[:, None], out=np.zeros_like(s), where=sigma[:, None] > 0)
@@ -255,9 +276,15 @@ class Rebars:
 
     def accept(self, state):
         """Make ``state`` (the end of a step) the accepted one: plastic strain, plastic
-        work L N d(eps_p) of the counted segments, largest forces."""
+        work L N d(eps_p) of the counted segments, largest forces; the segments whose strain
+        reached eps_u rupture, releasing their elastic energy there."""
         self.plastic_work += float(np.sum((self.L * state.N * (state.eps_p - self.eps_p))[self.counted]))
         self.eps_p = state.eps_p
+        breaking = (state.eps >= self.eps_u) & ~self.ruptured
+        if breaking.any():
+            released = 0.5 * self.L * state.N**2 / (self.E_s * self.area)
+            self.rupture_work += float(np.sum(released[breaking & self.counted]))
+            self.ruptured = self.ruptured | breaking
         self.force_max = state.N.max(initial=0.0)
         self.peak_force = max(self.peak_force, self.force_max)
 
@@ -280,7 +307,7 @@ class Rebars:
 
     def elastic_energy(self, u):
         """Elastic energy 1/2 L N^2 / (E_s A) of the counted segments at u (J, J/m in 2D),
-        with the accepted plastic strain."""
+        with the accepted plastic strain and ruptures."""
         N = self.state(u).N
         return float(np.sum((0.5 * self.L * N * N / (self.E_s * self.area))[self.counted]))
 
@@ -288,13 +315,13 @@ class Rebars:
         """The explicit scheme's bar energy at the mid-step t_{n+1/2} (J, J/m in 2D): the
         work of the bars' internal forces f on the bulk, trapezoidal along the path
         sum_k (f_{k-1} + f_k).(u_k - u_{k-1}) / 2 up to u_a = u_n (the last ``commit``),
-        plus f_n.(u_b - u_a) / 2 to u_b = u_{n+1}, less the plastic work: this rank's owned
+        plus f_n.(u_b - u_a) / 2 to u_b = u_{n+1}, less the dissipated energy: this rank's owned
         rows. Central differences give the kinetic energy exactly these increments,
         f_n.(u_{n+1} - u_{n-1}) / 2, so the balance closes to round-off; for elastic bars
         in one regime this is the modified energy 1/2 u_{n+1}.K u_n, and it stays within
         O(h^2) of elastic_energy."""
         own = self._own
-        return self._work + 0.5 * self._f_last @ (u_b[own] - u_a[own]) - self.plastic_work
+        return self._work + 0.5 * self._f_last @ (u_b[own] - u_a[own]) - self.dissipated
 
     def stiffness_bound(self, m):
         """An upper bound (1/s^2) of the largest eigenvalue of M^-1 K_bars at any state,

@@ -82,7 +82,8 @@ def _setup(case, comm):
     bars = None
     if case.rebar.faces:
         lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
-        bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm)
+        bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
+                            eps_u=case.rebar.eps_u)
         bars.add_mass(bulk_ops.m.x.array)
         # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
         # mass, stays an upper bound
@@ -317,6 +318,8 @@ def run(case, out, quiet=False, comm=None):
         summary["rebar"] = {"segments": bars.count,
                             "peak_force_N": comm.allreduce(bars.peak_force, op=MPI.MAX),
                             "plastic_work_J": comm.allreduce(bars.plastic_work),
+                            "ruptured_segments": bars.ruptures,
+                            "rupture_energy_J": comm.allreduce(bars.rupture_work),
                             "units": "N and J per metre of depth in 2D"}
     if section:
         # in the reference configuration: a bounding box then says where a piece came from

@@ -210,6 +210,6 @@ class Imex:
                           weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                           np.count_nonzero(self.model.broken()),
                           bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
-                          bars.plastic_work if bars else 0.0])
+                          bars.dissipated if bars else 0.0])
         total = self.space.mesh.comm.allreduce(local, op=MPI.SUM)
         return Energies(*total[:6], int(total[6]), rebar=total[7], plastic=total[8])

@@ -588,9 +588,9 @@ class Theta:
         the elastic energy change and the plastic work take all of it (rebar.py's discrete
         gradient), so this is round-off, booked to keep the balance exact."""
         bars, u_n = self.rebars, self.u.x.array
-        energy_n, plastic_n = bars.elastic_energy(u_n), bars.plastic_work
+        energy_n, dissipated_n = bars.elastic_energy(u_n), bars.dissipated
         bars.accept(step.end)
-        return bars.work(step, du) - (bars.elastic_energy(u_n + du) - energy_n) - (bars.plastic_work - plastic_n)
+        return bars.work(step, du) - (bars.elastic_energy(u_n + du) - energy_n) - (bars.dissipated - dissipated_n)
 
     def _book_reactions(self, step, r, dg):
         """Split the work of the step's reactions -w r.dg (J/m^2 per link) as the star Newton
@@ -616,7 +616,7 @@ class Theta:
                           self.w @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                           np.count_nonzero(self.model.broken()), self.numerical,
                           self.rebars.elastic_energy(u_all) if self.rebars else 0.0,
-                          self.rebars.plastic_work if self.rebars else 0.0])
+                          self.rebars.dissipated if self.rebars else 0.0])
         total = self.comm.allreduce(local, op=MPI.SUM)
         return Energies(*total[:6], int(total[6]), total[7], rebar=total[8], plastic=total[9])
 
