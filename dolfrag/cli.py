@@ -29,7 +29,8 @@ def _parser():
     run.add_argument("case", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
     run.add_argument("--out", help="output directory (default: results/<case name>)")
     run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                     help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable)")
+                     help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable); "
+                          "no value (--set time.dt=) removes it")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     cases = sub.add_parser("cases", help="list built-in cases, or print one as TOML")
     cases.add_argument("name", nargs="?")

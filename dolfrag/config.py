@@ -180,8 +180,8 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
         key = f"{prefix}.{name}"
         if spec.when and out[spec.when[0]] not in spec.when[1:]:
             if name in raw:
-                raise CaseError(f"{key} = {_show(raw[name])}: "
-                                f"only allowed when {spec.condition(prefix)}")
+                raise CaseError(f"{key} = {_show(raw[name])}: only allowed when "
+                                f"{spec.condition(prefix)} (--set {key}= removes it)")
             out[name] = None
         elif name in raw:
             out[name] = _convert(key, raw[name], spec, base)
@@ -602,11 +602,20 @@ def _build(raw: dict, source: Path) -> Case:
 
 
 def _apply_override(raw: dict, item: str) -> None:
-    """Apply one "section.key=value" string; the value is TOML if it parses, else a bare string."""
+    """Apply one "section.key=value" string; the value is TOML if it parses, else a bare
+    string; no value ("section.key=") removes the key, which takes its default again (e.g.
+    time.dt when switching a theta case to time.scheme=imex)."""
     key, sep, text = item.partition("=")
     parts = [part.strip() for part in key.split(".")]
     if not sep or not all(parts):
         raise CaseError(f"--set {_show(item)}: expected section.key=value")
+    if not text.strip():
+        section = raw
+        for part in parts[:-1]:
+            section = section.get(part, {}) if isinstance(section, dict) else {}
+        if isinstance(section, dict):
+            section.pop(parts[-1], None)
+        return
     try:
         value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
