@@ -293,6 +293,8 @@ def run(case, out, quiet=False, comm=None):
             progress.update(k)
             integ.timer.lap("output")
         summary["timings_s"] = integ.timer.summary(comm)
+        # star solves accepted at their best iterate within semismooth.GIVE_UP (imex)
+        summary["stalled_star_solves"] = comm.allreduce(integ.interface.stalled)
         summary["status"] = "completed"
     except BaseException as err:
         summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"

@@ -125,13 +125,14 @@ class NewtonReport:
     """Newton iterations of the last step (all its sub-steps), its extra sub-steps from step
     cutting, the largest final scaled residual of its sub-steps, and the energy the contact
     reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged
-    stays 0: a step that does not converge is cut, then raises ConvergenceError."""
+    and stalled stay 0: a step that does not converge is cut, then raises ConvergenceError."""
     max_iterations: int
     rtol: float
     iterations: int = 0
     cuts: int = 0
     residual: float = 0.0
     unconverged: int = 0
+    stalled: int = 0
     contact_dissipated: float = 0.0
 
 
