@@ -72,7 +72,7 @@ class ElasticSprings:
                 grp.inv = None  # in self._step now: half the memory
 
     contact_dissipated = 0.0  # no contact: the springs act in compression too
-    iterations = unconverged = 0  # a direct solve
+    iterations = unconverged = stalled = 0  # a direct solve
     residual = 0.0
     reaction = None  # the inverted blocks give prescribed components no increment
 
