@@ -7,7 +7,7 @@ from mpi4py import MPI
 
 from dolfrag.config import load_case
 from dolfrag.runner import setup
-from dolfrag.solver.semismooth import block_inverse
+from dolfrag.solver.semismooth import block_inverse, spring_jump
 
 
 def test_block_inverse_is_the_inverse_of_jacobians_with_a_diagonal_trailing_block():
@@ -24,6 +24,20 @@ def test_block_inverse_is_the_inverse_of_jacobians_with_a_diagonal_trailing_bloc
     assert split.any() and (~split).any()
     assert np.allclose(block_inverse(J, k), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     assert np.allclose(block_inverse(J, k) @ J, np.eye(N), atol=1e-12)
+
+
+def test_closed_links_read_their_springs_at_the_jump_contact_pins():
+    rng = np.random.default_rng(2)
+    g_n, dg, h_Bx = (rng.normal(scale=1e-4, size=(5, 3, 2)) for _ in range(3))
+    h_Bx[..., 0] = -(g_n[..., 0] + dg[..., 0])  # the end-of-step gap closed: g_end,N = 0
+    gbar = g_n + 0.25 * h_Bx
+    closed = np.array([[True, False, True]] * 5)
+    read = spring_jump(gbar + 1e-13, g_n, dg, closed)  # an iterate 1e-13 m off the constraint
+    # closed: the normal jump the constraint pins, independent of the iterate (round-off);
+    # open links and tangential parts: the iterate's own
+    assert np.allclose(read[..., 0][closed], gbar[..., 0][closed], rtol=0, atol=1e-19)
+    assert np.array_equal(read[..., 0][~closed], (gbar + 1e-13)[..., 0][~closed])
+    assert np.array_equal(read[..., 1], (gbar + 1e-13)[..., 1])
 
 
 def _integrator(predict):

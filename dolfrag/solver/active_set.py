@@ -40,18 +40,22 @@ def pattern_code(branches, gbar_N):
     return (code + NEGATIVE * (slip & (branches.e[..., 0] < 0))).astype(np.int8)
 
 
-def affine_constant(code, D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h):
+def affine_constant(code, D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h, t_pinned):
     """c of the pieces ``code`` (n, L) for the stars' data: D (n, L, d, d) springs' tangent
-    (Pa/m); BR (n, L d, q) link-frame jump operator; w (n, L) link weights (m or m^2);
-    rho (n, L) augmentation (Pa/m); rhs (n, q) h f (N s); fixed (n, q) prescribed
-    components; g_n, dg (n, L, d) m; mu (-), shift, cohesion_T (Pa) (n, L); h (s).
-    Returns (n, q + L d): momentum rows, then the normal rows of every link, then each
-    tangential component of every link."""
+    (Pa/m, without the normal column of links in contact: semismooth._spring_affine);
+    BR (n, L d, q) link-frame jump operator; w (n, L) link weights (m or m^2); rho (n, L)
+    augmentation (Pa/m); rhs (n, q) h f (N s); fixed (n, q) prescribed components; g_n, dg
+    (n, L, d) m; mu (-), shift, cohesion_T (Pa) (n, L); h (s); t_pinned (n, L) the springs'
+    normal traction (Pa) at the jump contact pins (semismooth.spring_jump). Returns
+    (n, q + L d): momentum rows, then the normal rows of every link, then each tangential
+    component of every link."""
     n, q = rhs.shape
-    t0 = np.einsum("slij,slj->sli", D, g_n) * w[..., None]
+    contact = (code & CONTACT) > 0
+    t0 = np.einsum("slij,slj->sli", D, g_n)
+    t0[..., 0] += np.where(contact, t_pinned, 0.0)
+    t0 *= w[..., None]
     c_m = h * np.einsum("spq,sp->sq", BR, t0.reshape(n, -1)) - rhs
     c_m[fixed] = 0.0
-    contact = (code & CONTACT) > 0
     c_N = np.where(contact, rho * (g_n[..., 0] + dg[..., 0]), shift)
     stick, slip = (code & STICK) > 0, (code & SLIP) > 0
     radius0 = mu * shift * ((code & PRESSED) > 0) + cohesion_T
@@ -79,8 +83,8 @@ class ActiveSets:
         self.inverse[stars], self.code[stars], self.D[stars] = inverse, code, D
         self.valid[stars] = cacheable
 
-    def predict(self, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h):
+    def predict(self, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h, t_pinned):
         """z = -J^-1 c (n_s, N) for every star of the group (data as in affine_constant);
         meaningful where ``valid``."""
-        c = affine_constant(self.code, self.D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h)
+        c = affine_constant(self.code, self.D, BR, w, rho, rhs, fixed, g_n, dg, mu, shift, cohesion_T, h, t_pinned)
         return -np.einsum("sij,sj->si", self.inverse, c)
