@@ -252,8 +252,7 @@ class StarNewton:
                                  for a in (self._mu, self._shift, self._cohesion_T))
         predicted = sets.valid & ~(fixed_all & (x_fixed != 0)).any(axis=1) & self.predict  # imposed: not cached
         if predicted.any():  # on every star at once: cheaper than gathering the predicted ones
-            pinned = spring_jump(g_n, g_n, dg_pred, np.ones(grp.links.shape, dtype=bool))
-            t_pinned = self.model.springs(pinned[..., 0].ravel(), pinned[..., 1:].reshape(-1, d - 1),
+            t_pinned = self.model.springs(pinned_normal_jump(g_n, dg_pred).ravel(), g_n[..., 1:].reshape(-1, d - 1),
                                           state_n.ravel()).r_N.reshape(n_s, L)
             z = sets.predict(BR_all, weight_all, rho_all, rhs, fixed_all, g_n, dg_pred, mu, shift, cohesion_T, h,
                              t_pinned)
@@ -559,10 +558,14 @@ def spring_jump(gbar, g_n, dg, closed):
     opening only sat on its kink at g_N = 0 at gaps exact to the contact tolerance (1e-13
     m), and Newton and Gauss-Seidel, each on one side, did not meet (measured:
     semismooth.GIVE_UP). At a solution both readings agree to that tolerance."""
-    pinned = 0.75 * g_n[..., 0] - 0.25 * dg[..., 0]
     out = gbar.copy()
-    out[..., 0] = np.where(closed, pinned, gbar[..., 0])
+    out[..., 0] = np.where(closed, pinned_normal_jump(g_n, dg), gbar[..., 0])
     return out
+
+
+def pinned_normal_jump(g_n, dg):
+    """gbar_N (n, L) of a closed link: 3 g_n,N / 4 - dg_N / 4 (see spring_jump)."""
+    return 0.75 * g_n[..., 0] - 0.25 * dg[..., 0]
 
 
 def _spring_affine(law, stars, L, g_n, closed):
@@ -572,11 +575,9 @@ def _spring_affine(law, stars, L, g_n, closed):
     x = 0, t0 (n, L, d): D g_n, plus on closed links the law's normal traction at the
     pinned jump."""
     D = _link_tangent(law, stars, L)
-    pinned = law.r_N.reshape(-1, L)[stars]
-    D_N = D[..., :, 0].copy()
-    D[..., :, 0] = np.where(closed[..., None], 0.0, D_N)
+    D[..., :, 0] *= ~closed[..., None]
     t0 = np.einsum("slij,slj->sli", D, g_n)
-    t0[..., 0] += np.where(closed, pinned, 0.0)
+    t0[..., 0] += np.where(closed, law.r_N.reshape(-1, L)[stars], 0.0)
     return D, t0
 
 
