@@ -1,6 +1,7 @@
 """Closed forms used for validation. One pure function per formula, SI units; nothing
 runs on import."""
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,12 +50,53 @@ def spall_distance(pressure, c, sigma_c, duration, samples=2001):
     return float(np.interp(sigma_c, tension[k - 1:k + 1], s[k - 1:k + 1]))
 
 
-def scab_velocity(pressure, c, rho, delta, samples=2001):
+def scab_velocity(pressure, c, rho, delta, start=0.0, samples=2001):
     """Velocity (m/s) of a scab of thickness delta (m) cut by a pulse p(t) (Pa): the momentum
-    trapped in it over its mass, (1 / (rho delta)) int_0^{2 delta / c} p(tau) dtau
-    (PHYSICS.md §3)."""
-    tau = np.linspace(0.0, 2 * delta / c, samples)
+    trapped in it over its mass, (1 / (rho delta)) int_start^{start + 2 delta / c} p(tau) dtau
+    (PHYSICS.md §3). ``start`` (s): the pulse time that opens the window, 0 for a sharp front,
+    the end of the rise for a ramped one (``bar_spall``)."""
+    tau = np.linspace(start, start + 2 * delta / c, samples)
     return float(np.trapz(pressure(tau), tau) / (rho * delta))
+
+
+class BarSpall(NamedTuple):
+    """The first spall of a 1D bar (``bar_spall``)."""
+    distance: float  # m from the free end
+    time: float  # s after the pulse starts on the loaded end
+    scab_velocity: float  # m/s: the piece between the free end and the plane
+    rest_velocity: float  # m/s: the centre of mass of the rest of the bar
+
+    @property
+    def relative_velocity(self):
+        """Scab minus rest (m/s): what the seed's block ejection velocity measures in 1D."""
+        return self.scab_velocity - self.rest_velocity
+
+
+def bar_spall(pressure, c, rho, sigma_c, length, duration, at=None, samples=2001):
+    """First spall of a bar of ``length`` (m), loaded on one end by the pressure p(t) (Pa,
+    ``duration`` s), free on the other; 1D, wave speed c (m/s), density rho (kg/m^3),
+    brittle at sigma_c (Pa). None if it does not spall.
+
+    The plane is ``spall_distance``. It breaks at the first pulse time tau at which the drop
+    p(tau) - p(tau + 2 delta / c) reaches sigma_c, i.e. at t = tau + (L + delta) / c; the scab
+    keeps the momentum of that window of the pulse (``scab_velocity``) and the rest of the
+    bar what else of the pulse has entered by the time ``at`` (s, default: all of it). The
+    velocities hold from the break on, as long as no second plane breaks (docs/hopkinson.md
+    §3).
+    """
+    delta = spall_distance(pressure, c, sigma_c, duration, samples)
+    if delta is None:
+        return None
+    tau = np.linspace(0.0, duration, samples)
+    drop = pressure(tau) - pressure(tau + 2 * delta / c)
+    # delta is interpolated, so the drop there peaks at sigma_c to within sampling error;
+    # a linear tail holds that peak over an interval, whose start is the break
+    start = tau[np.argmax(drop >= drop.max() - 1e-6 * sigma_c)]
+    scab = scab_velocity(pressure, c, rho, delta, start, samples)
+    entered = np.linspace(0.0, duration if at is None else min(at, duration), samples)
+    impulse = np.trapz(pressure(entered), entered)  # Pa s, per unit area
+    rest = (impulse - rho * delta * scab) / (rho * (length - delta))
+    return BarSpall(delta, float(start + (length + delta) / c), scab, float(rest))
 
 
 def triangular_spall_distance(wavelength, sigma_c, sigma_0):
@@ -74,15 +116,6 @@ def ejection_velocity(sigma_c, rho, E):
     the particle-velocity jump of the unloading wave the crack sends out (PHYSICS.md §3,
     "Why V_e"); rho kg/m^3, E Pa (the bar modulus)."""
     return sigma_c / np.sqrt(rho * E)
-
-
-def spall_time(length, delta, c, rise):
-    """Time (s) at which the first spall plane, delta (m) from the free end of a bar of
-    ``length`` (m), reaches the strength under a pulse rising linearly over ``rise`` (s)
-    then decaying linearly, applied at t = 0 on the far end (1D, wave speed c m/s;
-    docs/hopkinson.md §3): the reflected peak has travelled L + delta, rise + (L + delta) / c.
-    """
-    return rise + (length + delta) / c
 
 
 # Fragmentation of a bar stretched at a uniform strain rate (PHYSICS.md §4): scales of a

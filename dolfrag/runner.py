@@ -342,9 +342,12 @@ def run(case, out, quiet=False, comm=None):
     if free_end is not None:
         summary["breaks"] = breaks_by_time(frags, free_end)
         measured_at, at_measure = measured.get(shpb.MEASURE_TIME, (integ.t, frags))  # shorter run: the end
-        summary["shpb"] = shpb.shpb_block(frags, at_measure, measured_at, free_end,
-                                          shpb.tensile_strength(case.interface, integ.model.C_N),
-                                          case.material.rho, case.material.E, case.name)
+        sigma_c, rho, E = shpb.tensile_strength(case.interface, integ.model.C_N), case.material.rho, case.material.E
+        closed = None if sigma_c is None else analytic.bar_spall(
+            loads.signal(case.load), analytic.wave_speed(E, rho), rho, sigma_c, case.geometry.length,
+            loads.signal_end(case.load), at=measured_at)
+        summary["shpb"] = shpb.shpb_block(frags, at_measure, measured_at, free_end, sigma_c, rho, E, case.name,
+                                          closed_form=closed)
     output.summary(summary)
     if case.output.figures:
         figures = Path(out) / "figures"

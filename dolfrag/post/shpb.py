@@ -62,7 +62,14 @@ def ejection_velocities(frags, free_end, axis=0, share=BLOCK_MASS_SHARE):
     return v[:-1] - v[1:]
 
 
-def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=None, axis=0):
+def free_at(frags, i):
+    """Time (s) fragment i came free: the last separation from a neighbour (its boundary
+    completes then); None if it has no neighbour or a separation time is unknown."""
+    times = frags.separated_at[np.any(frags.neighbours == i, axis=1)]
+    return None if not len(times) or np.isnan(times).any() else float(times.max())
+
+
+def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=None, axis=0, closed_form=None):
     """The ``shpb`` dict of summary.json (JSON-ready).
 
     final: Fragments at the end of the run, for ``breaks`` (fragments.breaks_by_time).
@@ -70,7 +77,8 @@ def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=Non
     end of a shorter run; blocks and ejection velocities are taken there.
     free_end (m): coordinate of the free end on ``axis``. sigma_c (Pa, or None), rho
     (kg/m^3), E (Pa): for analytic.ejection_velocity. name: the case name; the seed's
-    values are attached for the cases in SEED.
+    values are attached for the cases in SEED. closed_form: the 1D first spall of the bar
+    (analytic.BarSpall, or None if it does not spall), reported as ``analytic_1d``.
     """
     order = blocks(measured, free_end, axis)
     ends = np.abs(free_end - np.stack([measured.bbox_min[order, axis], measured.bbox_max[order, axis]], axis=1))
@@ -81,10 +89,16 @@ def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=Non
         "block_mass_share": BLOCK_MASS_SHARE,
         "blocks": [{"mass_share": float(measured.mass[i] / measured.mass.sum()),
                     "extent_from_free_end_m": sorted(map(float, ends[j])),
-                    "velocity_x_m_s": float(measured.velocity[i, axis])} for j, i in enumerate(order)],
+                    "velocity_x_m_s": float(measured.velocity[i, axis]),
+                    "free_at_s": free_at(measured, i)} for j, i in enumerate(order)],
         "ejection_velocities_m_s": ejection_velocities(measured, free_end, axis).tolist(),
         "analytic_ejection_velocity_m_s": None if sigma_c is None else float(
             analytic.ejection_velocity(sigma_c, rho, E)),
+        "analytic_1d": None if closed_form is None else {
+            "spall_distance_from_free_end_m": float(closed_form.distance), "break_time_s": float(closed_form.time),
+            "scab_velocity_m_s": float(closed_form.scab_velocity),
+            "rest_velocity_m_s": float(closed_form.rest_velocity),
+            "relative_velocity_m_s": float(closed_form.relative_velocity)},
     }
     if name in SEED:
         out["seed"] = SEED[name]
