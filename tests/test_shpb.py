@@ -1,12 +1,13 @@
 """The Hopkinson-bar block of summary.json (post/shpb.py) on hand-made fragments, its closed
 forms (analytic.py), and a short run of shpb-be16 / shpb-be12 for the outputs (no physics
 criteria: docs/hopkinson.md)."""
+import importlib.util
 import json
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import mpirun
+from conftest import ROOT, mpirun
 from mpi4py import MPI
 
 from dolfrag import analytic, loads
@@ -201,3 +202,23 @@ def test_a_run_shorter_than_80_us_is_measured_at_its_end(tmp_path):
     summary = run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
     assert summary["shpb"]["measured_at_s"] == pytest.approx(20e-6, rel=1e-12)
     assert summary["shpb"]["seed"]["simulation"]["breaks_from_free_end_m"] == [0.042, 0.064]
+
+
+def test_the_validation_table_judges_the_issue_criteria_on_hand_made_blocks():
+    spec = importlib.util.spec_from_file_location("shpb_table", ROOT / "validation" / "shpb_table.py")
+    table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(table)
+    v_e = analytic.ejection_velocity(21e6, RHO, E)
+    # BE16: two blocks cut at 65 mm from the free end, parting at V_e: both criteria met
+    two = shpb.shpb_block(*[bar([0.0, 0.055], [0.055, L], [2.0, 2.0 + v_e], separated_at=[70e-6])] * 2, 80e-6, L,
+                          21e6, RHO, E)
+    assert table.break_criterion("shpb-be16", two)[0] and table.ejection_criterion(two)[0]
+    # at 1.3 V_e the ejection misses; a cut at 50 mm misses the break
+    fast = shpb.shpb_block(*[bar([0.0, 0.055], [0.055, L], [2.0, 2.0 + 1.3 * v_e])] * 2, 80e-6, L, 21e6, RHO, E)
+    assert not table.ejection_criterion(fast)[0]
+    near = shpb.shpb_block(*[bar([0.0, 0.07], [0.07, L], [2.0, 4.0])] * 2, 80e-6, L, 21e6, RHO, E)
+    assert not table.break_criterion("shpb-be16", near)[0]
+    # BE12: three blocks; the free-end break (at 40 mm) first passes, the loaded-side one first fails
+    for times, passed in (([70e-6, 60e-6], True), ([60e-6, 70e-6], False)):
+        three = bar([0.0, 0.04, 0.08], [0.04, 0.08, L], [1.0, 4.0, 7.0], separated_at=times)
+        assert table.break_criterion("shpb-be12", shpb.shpb_block(three, three, 80e-6, L, 28e6, RHO, E))[0] is passed
