@@ -254,6 +254,9 @@ class Interface:
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
     C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
     stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
+    # C_T = shear_ratio * C_N on every mesh (instead of C_T); the RCCM shear strength is then
+    # sqrt(shear_ratio) sigma_c
+    shear_ratio: float | None = _f("float", None, bounds="> 0")     # [-], > 0
     # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both;
     # rccm_decoupled: sigma_c and G_c independent of C_N; linear_softening: sigma_c (rigid up
     # to it) and G_c
@@ -276,9 +279,13 @@ class Interface:
         return self.w if self.w is not None else self.sigma_c**2 / C_N
 
     def stiffness(self, E: float, h: float) -> tuple[float, float]:
-        """(C_N, C_T) [Pa/m]: the given values, else stiffness_ratio * E / h."""
+        """(C_N, C_T) [Pa/m]: the given values, else stiffness_ratio * E / h; C_T is
+        shear_ratio * C_N if shear_ratio is given."""
         rule = self.stiffness_ratio * E / h
-        return (rule if self.C_N is None else self.C_N, rule if self.C_T is None else self.C_T)
+        C_N = rule if self.C_N is None else self.C_N
+        if self.shear_ratio is not None:
+            return C_N, self.shear_ratio * C_N
+        return C_N, rule if self.C_T is None else self.C_T
 
 
 @dataclass(frozen=True)
@@ -465,6 +472,9 @@ def _check(case: Case) -> None:
     if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
         raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
                         "rccm needs exactly one of them (Pa, J/m^2)")
+    if law.C_T is not None and law.shear_ratio is not None:
+        raise CaseError(f"interface.C_T = {law.C_T:g} Pa/m, interface.shear_ratio = {law.shear_ratio!r}: "
+                        "give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
     if case.time.scheme == "theta" and law.law in ("threshold", "linear_softening"):
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")

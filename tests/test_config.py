@@ -237,6 +237,17 @@ def test_stiffness():
     assert Interface(stiffness_ratio=2.0).stiffness(1.0, 0.5) == (4.0, 4.0)
     assert Interface(C_N=7.0).stiffness(1.0, 0.5) == (7.0, 20.0)
     assert Interface(C_N=7.0, C_T=3.0).stiffness(1.0, 0.5) == (7.0, 3.0)
+    # a shear ratio follows the mesh: C_T = ratio * C_N at every h, given C_N included
+    assert Interface(shear_ratio=4.0).stiffness(1.0, 0.5) == (20.0, 80.0)
+    assert Interface(shear_ratio=4.0).stiffness(1.0, 0.25) == (40.0, 160.0)
+    assert Interface(C_N=7.0, shear_ratio=0.5).stiffness(1.0, 0.5) == (7.0, 3.5)
+
+
+def test_shear_ratio_and_C_T_together_are_refused():
+    with pytest.raises(CaseError, match=r"^interface\.C_T = 1e\+14 Pa/m, interface\.shear_ratio = 4\.0: give one"):
+        load_case("shpb-be16", ["interface.C_T=1e14", "interface.shear_ratio=4"])
+    assert load_case("shpb-be16", ["interface.shear_ratio=4"]).interface.stiffness(35e9, 0.007)[1] == \
+        pytest.approx(4 * 10 * 35e9 / 0.007, rel=1e-15)
 
 
 def test_missing_or_invalid_file(tmp_path):
