@@ -102,6 +102,10 @@ def test_the_1d_closed_form_is_reported_as_given():
     one_d = shpb.shpb_block(frags, frags, 80e-6, L, 21e6, RHO, E, closed_form=closed)["analytic_1d"]
     assert one_d == {"spall_distance_from_free_end_m": 0.055, "break_time_s": 55.4e-6, "scab_velocity_m_s": 5.6,
                      "rest_velocity_m_s": 2.2, "relative_velocity_m_s": pytest.approx(3.4, rel=1e-15)}
+    # measured before the 1D break: the bar is still whole, no block velocities
+    early = shpb.shpb_block(frags, frags, 20e-6, L, 21e6, RHO, E, closed_form=closed)["analytic_1d"]
+    assert early["spall_distance_from_free_end_m"] == 0.055 and early["break_time_s"] == 55.4e-6
+    assert early["scab_velocity_m_s"] is early["rest_velocity_m_s"] is early["relative_velocity_m_s"] is None
 
 
 def test_strength_of_each_law():
@@ -193,6 +197,7 @@ def test_be16_gives_the_same_breaks_and_velocities_on_one_and_two_ranks(be16, tm
     speed = max(abs(b["velocity_x_m_s"]) for b in one["blocks"])
     assert np.allclose([b["velocity_x_m_s"] for b in one["blocks"]], [b["velocity_x_m_s"] for b in two["blocks"]],
                        rtol=0, atol=steps * RTOL * speed)
+    # a difference of two such velocities: twice the bound
     assert np.allclose(one["ejection_velocities_m_s"], two["ejection_velocities_m_s"], rtol=0,
                        atol=2 * steps * RTOL * speed)
 
@@ -201,6 +206,7 @@ def test_a_run_shorter_than_80_us_is_measured_at_its_end(tmp_path):
     case = load_case("shpb-be12", ["time.end=20e-6", "output.fields=0", "output.figures=false"])
     summary = run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
     assert summary["shpb"]["measured_at_s"] == pytest.approx(20e-6, rel=1e-12)
+    assert summary["shpb"]["analytic_1d"]["relative_velocity_m_s"] is None  # 1D break at 58.9 us
     assert summary["shpb"]["seed"]["simulation"]["breaks_from_free_end_m"] == [0.042, 0.064]
 
 

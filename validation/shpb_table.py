@@ -66,6 +66,11 @@ def ejection_criterion(shpb):
     return passed, ", ".join(f"{x:.2f}" for x in v) or "none"
 
 
+def number(v):
+    """v to 2 decimals, a dash for None (no strength, or no 1D break by 80 µs)."""
+    return "–" if v is None else f"{v:.2f}"
+
+
 def mark(passed, seen):
     return seen if passed else f"**{seen}**"
 
@@ -95,7 +100,8 @@ def main():
                          "break_passed": b_ok, "break": b_seen,
                          "ejection_passed": v_ok, "ejection": v_seen,
                          "V_e": shpb["analytic_ejection_velocity_m_s"],
-                         "V_1d": shpb["analytic_1d"]["relative_velocity_m_s"], "wall_s": summary["wall_time_s"]})
+                         "V_1d": (shpb["analytic_1d"] or {}).get("relative_velocity_m_s"),
+                         "wall_s": summary["wall_time_s"]})
     if comm.rank:
         return
     lines = [f"overrides: {' '.join(args.set) or 'none (the case files as written)'}", "",
@@ -104,7 +110,7 @@ def main():
              "|---|---|---|---|---|---|---|---|---|---|"]
     lines += [f"| {r['case']} | {r['h_m'] * 1e3:g} | {r['cells']} | {r['fragments']} | {r['first_break'] or '–'} | "
               f"{mark(r['break_passed'], r['break'])} | {mark(r['ejection_passed'], r['ejection'])} | "
-              f"{r['V_e']:.2f} | {r['V_1d']:.2f} | {r['wall_s']:.0f} |" for r in rows]
+              f"{number(r['V_e'])} | {number(r['V_1d'])} | {r['wall_s']:.0f} |" for r in rows]
     passed = sum(r["break_passed"] + r["ejection_passed"] for r in rows)
     lines += ["", f"criteria met: {passed} of {2 * len(rows)} (bold: missed)"]
     text = "\n".join(lines)

@@ -69,6 +69,16 @@ def free_at(frags, i):
     return None if not len(times) or np.isnan(times).any() else float(times.max())
 
 
+def _one_d(closed_form, measured_at):
+    """analytic_1d: the closed form's plane and break time; its velocities only from the
+    break on (None before it, when the 1D bar is still whole)."""
+    spalled = measured_at >= closed_form.time
+    velocities = {"scab_velocity_m_s": closed_form.scab_velocity, "rest_velocity_m_s": closed_form.rest_velocity,
+                  "relative_velocity_m_s": closed_form.relative_velocity}
+    return {"spall_distance_from_free_end_m": float(closed_form.distance), "break_time_s": float(closed_form.time),
+            **{key: float(v) if spalled else None for key, v in velocities.items()}}
+
+
 def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=None, axis=0, closed_form=None):
     """The ``shpb`` dict of summary.json (JSON-ready).
 
@@ -78,7 +88,8 @@ def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=Non
     free_end (m): coordinate of the free end on ``axis``. sigma_c (Pa, or None), rho
     (kg/m^3), E (Pa): for analytic.ejection_velocity. name: the case name; the seed's
     values are attached for the cases in SEED. closed_form: the 1D first spall of the bar
-    (analytic.BarSpall, or None if it does not spall), reported as ``analytic_1d``.
+    (analytic.BarSpall, or None if it does not spall), reported as ``analytic_1d``, its
+    velocities only if ``measured_at`` is after its break.
     """
     order = blocks(measured, free_end, axis)
     ends = np.abs(free_end - np.stack([measured.bbox_min[order, axis], measured.bbox_max[order, axis]], axis=1))
@@ -94,11 +105,7 @@ def shpb_block(final, measured, measured_at, free_end, sigma_c, rho, E, name=Non
         "ejection_velocities_m_s": ejection_velocities(measured, free_end, axis).tolist(),
         "analytic_ejection_velocity_m_s": None if sigma_c is None else float(
             analytic.ejection_velocity(sigma_c, rho, E)),
-        "analytic_1d": None if closed_form is None else {
-            "spall_distance_from_free_end_m": float(closed_form.distance), "break_time_s": float(closed_form.time),
-            "scab_velocity_m_s": float(closed_form.scab_velocity),
-            "rest_velocity_m_s": float(closed_form.rest_velocity),
-            "relative_velocity_m_s": float(closed_form.relative_velocity)},
+        "analytic_1d": None if closed_form is None else _one_d(closed_form, measured_at),
     }
     if name in SEED:
         out["seed"] = SEED[name]
