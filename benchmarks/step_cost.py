@@ -29,7 +29,8 @@ from mpi4py import MPI
 import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
 from dolfrag import loads
 from dolfrag.config import load_case
-from dolfrag.runner import setup
+from dolfrag.problem import Problem
+from dolfrag.run.driver import integrator
 from dolfrag.solver.theta import Theta
 
 # gmsh puts about 2.33 A / h^2 triangles in an area A and 5.5 V / h^3 tetrahedra in a
@@ -60,7 +61,8 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
         size = np.cbrt(TETRAHEDRA_PER_VOLUME_H3 * L * W * W / cells)
         shape = ["geometry.kind=box", f"geometry.thickness={W}", 'supports.rollers=["bottom","top","front","back"]']
     case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *shape, *LAWS[law]])
-    domain, space, links, integ, _, _ = setup(case, comm)
+    problem = Problem.build(case, comm)
+    domain, space, links, integ = problem.domain, problem.space, problem.links, integrator(problem)
     n_cells = space.mesh.topology.index_map(dim).size_global
     if scheme == "theta":
         return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),

@@ -30,7 +30,6 @@ except ImportError:
 __version__ = "0.1.0"
 
 
-def run(case, out, quiet=False, comm=None):
-    """Run a case (config.Case, a path, or a built-in name) and write its outputs into ``out``."""
-    from dolfrag.runner import run as _run
-    return _run(case, out, quiet=quiet, comm=comm)
+# the one entry point, bound after the package's settings above; it is also the name of
+# the package dolfrag/run/, whose modules are imported as ``from dolfrag.run.x import y``
+from dolfrag.run.driver import run  # noqa: E402,F401

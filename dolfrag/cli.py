@@ -1,6 +1,7 @@
 """The `dolfrag` command: a thin layer over dolfrag.run.
 
     dolfrag run CASE [--out DIR] [--set section.key=value ...] [--quiet]
+    dolfrag run --resume DIR [--quiet]
     dolfrag cases [NAME]
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
 
@@ -10,8 +11,13 @@ and its time (s), impulse (Pa s) and duration (s) as `name = value` lines.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
 and one line naming the key, the value and what is allowed.
+
+`run` checkpoints every output.checkpoint_every seconds of wall time and at the end;
+SIGINT or SIGTERM stop it at the end of the current step (checkpoint, summary.json with
+status "interrupted"), exit 130 or 143; `--resume DIR` continues it on as many ranks.
 """
 import argparse
+import signal
 import sys
 import traceback
 from pathlib import Path
@@ -19,6 +25,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
+from dolfrag.run.driver import run
+from dolfrag.run.signals import EXIT_CODES
 
 
 def _parser():
@@ -26,7 +34,8 @@ def _parser():
                                      "under dynamic loads (cohesive interfaces on every facet). SI units.")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a case")
-    run.add_argument("case", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
+    run.add_argument("case", nargs="?", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
+    run.add_argument("--resume", metavar="DIR", help="continue the run whose checkpoint is in DIR (same rank count)")
     run.add_argument("--out", help="output directory (default: results/<case name>)")
     run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                      help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable); "
@@ -60,9 +69,19 @@ def _plot_load(case, out, comm):
 
 
 def main(argv=None):
-    args = _parser().parse_args(argv)
+    # a closed pipe (`dolfrag cases | head`) ends the process quietly, as for any command-line tool
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    parser = _parser()
+    args = parser.parse_args(argv)
     comm = MPI.COMM_WORLD
+    if args.command == "run" and (args.case is None) == (args.resume is None):
+        parser.error("run: give a CASE or --resume DIR (not both)")
+    if args.command == "run" and args.resume and (args.set or args.out):
+        parser.error("run --resume DIR: the case and its folder are the checkpoint's (no --set, no --out)")
     try:
+        if args.command == "run" and args.resume:
+            summary = run(None, args.resume, quiet=args.quiet, comm=comm, resume=True)
+            return _report(summary, comm, args.quiet)
         if args.command == "cases":
             if comm.rank == 0:
                 print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
@@ -71,8 +90,8 @@ def main(argv=None):
         if args.command == "loads":
             _plot_load(case, args.out, comm)
             return 0
-        from dolfrag.runner import run
         summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
+        return _report(summary, comm, args.quiet)
     except CaseError as err:
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)
@@ -83,9 +102,20 @@ def main(argv=None):
         # one rank failing alone would leave the others waiting in a collective forever
         traceback.print_exc()
         comm.Abort(1)
-    if comm.rank == 0 and not args.quiet:
-        print(f"{case.name}: {summary['steps']} steps, {summary['cells']} cells, {summary['links']} links, "
-              f"{summary['wall_time_s']:.1f} s on {summary['ranks']} rank(s); "
+    return 0
+
+
+def _report(summary, comm, quiet):
+    """One line on a finished or interrupted run; the exit status (128 + signal when stopped)."""
+    if summary["status"] == "interrupted":
+        if comm.rank == 0:
+            print(f"dolfrag: {summary['signal']}: stopped at t = {summary['time_reached_s']:.6g} s (step "
+                  f"{summary['steps_done']} of {summary['steps']}), checkpoint written; resume with: "
+                  f"{summary['resume']}", file=sys.stderr)
+        return EXIT_CODES[signal.Signals[summary["signal"]]]
+    if comm.rank == 0 and not quiet:
+        print(f"{summary['case']['name']}: {summary['steps']} steps, {summary['cells']} cells, "
+              f"{summary['links']} links, {summary['wall_time_s']:.1f} s on {summary['ranks']} rank(s); "
               f"energy balance error {summary['balance_error_relative']:.1e} of the work")
     return 0
 

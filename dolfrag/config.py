@@ -58,12 +58,14 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
+
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-LAWS = ("elastic", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "table")
 LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
+LAWS = tuple(_LAW_REGISTRY)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
 
@@ -392,6 +394,8 @@ class Output:
     figures: bool = _f("bool", True)              # write figures at the end
     # times at which the fragments are also reported (summary.json "fragments_at")
     fragments_at: tuple[float, ...] = _f("numbers", (), bounds=">= 0", unit="s")
+    # wall time between checkpoints (and one at the end): `dolfrag run --resume` continues from the last
+    checkpoint_every: float = _f("float", 900.0, bounds="> 0", unit="s")
 
 
 @dataclass(frozen=True)
@@ -475,7 +479,7 @@ def _check(case: Case) -> None:
     if law.C_T is not None and law.shear_ratio is not None:
         raise CaseError(f"interface.C_T = {law.C_T:g} Pa/m, interface.shear_ratio = {law.shear_ratio!r}: "
                         "give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
-    if case.time.scheme == "theta" and law.law in ("threshold", "linear_softening"):
+    if case.time.scheme == "theta" and not _law(law).theta:
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
     if case.time.scheme == "theta" and law.mu_i:
@@ -539,8 +543,8 @@ def _check_stretch(case: Case) -> None:
     if case.time.scheme != "imex":
         raise CaseError(f"{where} time.scheme = {case.time.scheme!r}: not available (the imposed end "
                         "velocities need the imex star solve); use time.scheme = 'imex'")
-    if case.interface.law == "elastic":
-        raise CaseError(f"{where} interface.law = 'elastic': not available (its inverted star blocks "
+    if _law(case.interface).springs:
+        raise CaseError(f"{where} interface.law = {case.interface.law!r}: not available (its inverted star blocks "
                         "cannot move prescribed components); use a nonsmooth law, e.g. 'linear_softening'")
 
 

@@ -151,6 +151,10 @@ class Rebars:
     segment is touching); force_max, peak_force (N, per metre in 2D): the largest axial
     force on this rank's segments at the last accepted state, and over the run so far."""
 
+    # what a checkpoint keeps
+    STATE = ("eps_p", "ruptured", "plastic_work", "rupture_work", "peak_force", "force_max", "_work", "_u_last",
+             "_f_last")
+
     def __init__(self, space, lines, areas, E_s, f_y, rho_s, size, comm, eps_u=None):
         self.space, self.E_s, self.f_y, self.rho_s = space, E_s, (np.inf if f_y is None else f_y), rho_s
         self.eps_u = np.inf if eps_u is None else eps_u

@@ -41,6 +41,8 @@ class Stretch:
     their held velocity (m/s), same shape. initial_energy: E_{-1/2} (J, J/m in 2D, global).
     """
 
+    STATE = ("_work",)  # what a checkpoint keeps
+
     def __init__(self, space, domain, rate):
         comm = space.mesh.comm
         x = space.x[:space.n_owned_dofs, 0]

@@ -6,20 +6,20 @@ import numpy as np
 from mpi4py import MPI
 
 from conftest import ROOT
-from dolfrag import loads, supports
+from dolfrag import loads
 from dolfrag.config import load_case
-from dolfrag.runner import setup
+from dolfrag.problem import Problem
 from dolfrag.solver.theta import Theta
 
-H_FACTOR = 4.0  # theta's step, in units of the imex step runner.setup chooses
+H_FACTOR = 4.0  # theta's step, in units of the imex step Problem.build chooses
 STEPS = int(sys.argv[2]) if len(sys.argv) > 2 else 40
 
 comm = MPI.COMM_WORLD
 case = load_case(ROOT / "tests" / "cases" / "rccm-bar.toml", ["mesh.size=0.008"])
-domain, space, links, imex, _, _ = setup(case, comm)
+problem = Problem.build(case, comm)
+domain, space = problem.domain, problem.space
 load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-fixed = supports.constrained_components(space, domain, case.supports)
-integ = Theta(space, imex.bulk, imex.jump, imex.model, load, imex.pressure, H_FACTOR * imex.h, 0.5, fixed)
+integ = Theta.from_problem(problem, h=H_FACTOR * problem.h, theta=0.5, load=load)
 right = space.boundary_dofs(domain.facet_tags, domain.boundary_tag("right"))
 right = space.gdim * right[right < space.n_owned_dofs]
 names = ["kinetic", "bulk", "interface", "damage", "contact", "external_work", "numerical", "broken_links"]

@@ -11,7 +11,8 @@ from mpi4py import MPI
 from conftest import mpirun
 
 from dolfrag.config import load_case
-from dolfrag.runner import _setup
+from dolfrag.problem import Problem
+from dolfrag.run.driver import prepare
 
 # The test size: 4 mm triangles (750), the case's 30 us (62 steps, ~5 s). The case runs 2 mm.
 SMALL = ["mesh.size=0.004", "output.fields=0", "output.figures=false"]
@@ -23,7 +24,8 @@ def _links(out):
 
 def test_stretch_starts_with_the_closed_form_kinetic_energy_and_holds_the_ends():
     case = load_case("expanding-bar", SMALL)
-    _, space, _, integ, _, _, stretch = _setup(case, MPI.COMM_SELF)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    space, (integ, stretch) = problem.space, prepare(problem)
     rate, L, W, rho = case.load.strain_rate, case.geometry.length, case.geometry.width, case.material.rho
     assert stretch.length == pytest.approx(L, rel=1e-12) and stretch.x_mid == pytest.approx(L / 2, rel=1e-12)
     v = integ.v.x.array.reshape(-1, 2)

@@ -9,7 +9,8 @@ from mpi4py import MPI
 from conftest import ROOT, mpirun
 
 from dolfrag.config import load_case
-from dolfrag.runner import run, setup
+from dolfrag.problem import Problem
+from dolfrag.run.driver import integrator, run
 
 RCCM_BAR = ROOT / "tests" / "cases" / "rccm-bar.toml"
 
@@ -17,7 +18,8 @@ RCCM_BAR = ROOT / "tests" / "cases" / "rccm-bar.toml"
 def test_intact_rccm_never_interpenetrates_and_closes_the_energy_balance():
     # sigma_c = 1 GPa: nothing breaks; closing interfaces are rigid (exact contact)
     case = load_case("sound-bar", ["interface.law=rccm", "interface.sigma_c=1e9", "mesh.size=0.004"])
-    _, _, _, integ, n_steps, _ = setup(case, MPI.COMM_SELF)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    integ, n_steps = integrator(problem), problem.n_steps
     worst_gap, largest_u = 0.0, 0.0
     for _ in range(n_steps - 1):
         integ.step()
@@ -102,7 +104,8 @@ def test_damage_field_is_the_largest_link_damage_at_each_dof():
     from dolfrag import compat
     from dolfrag.post.output import dof_damage
     case = load_case(RCCM_BAR)
-    _, space, links, integ, _, _ = setup(case, MPI.COMM_SELF)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    space, links, integ = problem.space, problem.links, integrator(problem)
     rng = np.random.default_rng(1)
     integ.model.beta[:] = rng.uniform(0.0, 1.0, len(links))
     field = compat.Function(compat.dg1_scalar_space(space.mesh))
@@ -118,13 +121,13 @@ def test_damage_field_is_the_largest_link_damage_at_each_dof():
 def test_a_step_newton_cannot_finish_fails_clearly_and_saves_the_state(tmp_path, monkeypatch):
     import functools
 
-    from dolfrag import runner
+    from dolfrag.solver import imex
     from dolfrag.solver.semismooth import ConvergenceError, StarNewton
     # one Newton iteration cannot solve a star whose contact pattern changes
-    monkeypatch.setattr(runner, "StarNewton", functools.partial(StarNewton, max_iterations=1))
+    monkeypatch.setattr(imex, "StarNewton", functools.partial(StarNewton, max_iterations=1))
     case = load_case(RCCM_BAR, ["output.fields=0", "output.figures=false"])
     with pytest.raises(ConvergenceError, match=r"vertex star\(s\) did not converge in 1 Newton"):
-        runner.run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
+        run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"].startswith("failed at t = ") and "ConvergenceError" in summary["status"]
     assert (tmp_path / "failure.pvd").stat().st_size > 0

@@ -6,6 +6,8 @@ Each law's traction is compared, step by step, with its closed form evaluated th
 the step evaluates it: the springs at the jump of the average (g_{n+1} + 2 g_n + g_{n-1})/4
 with the state lagged by one step, the rigid constraint at the end-of-step gap. Those are
 exact statements about the discrete step, so they hold to the Newton tolerance."""
+import dataclasses
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -14,7 +16,7 @@ from conftest import ROOT
 from dolfrag import compat
 from dolfrag.config import load_case
 from dolfrag.interface.stars import Stars
-from dolfrag.runner import interface_step, setup
+from dolfrag.problem import Problem
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.semismooth import step_stiffness
 
@@ -27,15 +29,14 @@ def two_cells(overrides, held=("A", "B")):
     """The patch integrator with the named cells' components prescribed (A held still,
     B moved by ``drive``), and the flat components of cell A and of cell B."""
     case = load_case(PATCH, overrides)
-    _, space, links, integ, _, _ = setup(case, MPI.COMM_SELF)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    space, links = problem.space, problem.links
     d = space.gdim
     cell_of = {"A": np.flatnonzero((space.cell_dofs == links.dof_A[0]).any(axis=1))[0],
                "B": np.flatnonzero((space.cell_dofs == links.dof_B[0]).any(axis=1))[0]}
     comps = {k: (d * space.cell_dofs[c][:, None] + np.arange(d)).ravel() for k, c in cell_of.items()}
     stars = Stars(space, links, np.concatenate([comps[k] for k in held]))
-    step = interface_step(case.interface, case.material.E, case.mesh.size, stars, integ.jump,
-                          integ.m, integ.h)
-    integ = Imex(space, integ.bulk, integ.jump, step, compat.Function(space.V), integ.pressure, integ.h)
+    integ = Imex.from_problem(dataclasses.replace(problem, stars=stars), load=compat.Function(space.V))
     return case, integ, links, comps
 
 

@@ -6,7 +6,8 @@ import pytest
 from mpi4py import MPI
 
 from dolfrag.config import load_case
-from dolfrag.runner import setup
+from dolfrag.problem import Problem
+from dolfrag.run.driver import integrator
 from dolfrag.solver.semismooth import block_inverse, spring_jump
 
 
@@ -43,7 +44,7 @@ def test_closed_links_read_their_springs_at_the_jump_contact_pins():
 def _integrator(predict):
     case = load_case("sound-bar", ["mesh.size=0.004", "interface.law=rccm", "interface.sigma_c=4e5",
                                    "interface.mu=0.3"])
-    integ = setup(case, MPI.COMM_SELF)[3]
+    integ = integrator(Problem.build(case, MPI.COMM_SELF))
     integ.interface.predict = predict
     return integ
 

@@ -5,11 +5,11 @@ import pytest
 from mpi4py import MPI
 
 from conftest import mpirun
-from dolfrag import loads, supports
+from dolfrag import loads
 from dolfrag.config import load_case
 from dolfrag.interface import models
-from dolfrag.interface.stars import Stars
-from dolfrag.runner import interface_step, run, setup
+from dolfrag.problem import Problem
+from dolfrag.run.driver import run
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.theta import ConvergenceError, Theta, accuracy_time_step
 
@@ -18,14 +18,10 @@ INTACT_RCCM = ["interface.law=rccm", "interface.sigma_c=1e9"]  # nothing breaks:
 
 
 def build(overrides, h_factor=1.0, theta=0.5, **options):
-    """A Theta on the sound-bar case (serial), at h_factor times the imex step of setup."""
-    case = load_case("sound-bar", overrides)
-    domain, space, links, imex, n_steps, dt_crit = setup(case, MPI.COMM_SELF)
-    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-    fixed = supports.constrained_components(space, domain, case.supports)
-    integ = Theta(space, imex.bulk, imex.jump, imex.model, load, imex.pressure, h_factor * imex.h, theta, fixed,
-                  **options)
-    return integ, int(np.ceil(case.time.end / integ.h)), dt_crit
+    """A Theta on the sound-bar case (serial), at h_factor times the imex step of the problem."""
+    problem = Problem.build(load_case("sound-bar", overrides), MPI.COMM_SELF)
+    integ = Theta.from_problem(problem, h=h_factor * problem.h, theta=theta, **options)
+    return integ, int(np.ceil(problem.case.time.end / integ.h)), problem.dt_crit
 
 
 def test_theta_one_half_conserves_the_discrete_energy_of_elastic_springs_beyond_dt_crit():
@@ -63,18 +59,14 @@ def pull_histories(h, steps):
     """Mean displacement and velocity of the pulled end (x-components), imex and theta."""
     case = load_case("sound-bar", ["mesh.size=0.006", "geometry.length=0.06", *INTACT_RCCM,
                                    'supports.clamped=["right"]'])
-    domain, space, links, imex, _, _ = setup(case, MPI.COMM_SELF)
-    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-    fixed = supports.constrained_components(space, domain, case.supports)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    domain, space, links = problem.domain, problem.space, problem.links
     end = space.gdim * space.boundary_dofs(domain.facet_tags, domain.boundary_tag("left"))
     pull = sin2_pull(2e6, RAMP)
-    C_N, C_T = imex.model.C_N, imex.model.C_T
+    C_N, C_T = problem.stiffness
     rccm = models.Rccm(len(links), C_N, C_T, case.interface.adhesion_energy(C_N))
-    stars = Stars(space, links, fixed)
-    schemes = {"imex": Imex(space, imex.bulk, imex.jump, interface_step(case.interface, case.material.E,
-                                                                         case.mesh.size, stars, imex.jump, imex.m, h),
-                            load, pull, h),
-               "theta": Theta(space, imex.bulk, imex.jump, rccm, load, pull, h, 0.5, fixed)}
+    schemes = {"imex": Imex.from_problem(problem, h=h, pressure=pull),
+               "theta": Theta.from_problem(problem, h=h, theta=0.5, model=rccm, pressure=pull)}
     out = {}
     for name, integ in schemes.items():
         u, v = np.zeros(steps), np.zeros(steps)
@@ -200,11 +192,11 @@ def test_theta_jacobian_with_turning_bars_is_the_derivative_of_its_residual():
     state with the bars turned and stretched (some yielding, some slack). Linear springs:
     the bars are the only nonlinearity."""
     case = load_case("wall-bending-clamped", ["geometry.length=0.3", "mesh.size=0.05"])
-    domain, space, links, rccm, _, _ = setup(case, MPI.COMM_SELF)
-    springs = models.Elastic(len(links), rccm.model.C_N, rccm.model.C_T)
-    load = loads.unit_pressure_vector(space, domain, case.load.boundary)
-    fixed = supports.constrained_components(space, domain, case.supports)
-    integ = Theta(space, rccm.bulk, rccm.jump, springs, load, rccm.pressure, rccm.h, 0.5, fixed, rebars=rccm.rebars)
+    problem = Problem.build(case, MPI.COMM_SELF)
+    space = problem.space
+    springs = models.Elastic(len(problem.links), *problem.stiffness)
+    load = loads.unit_pressure_vector(space, problem.domain, case.load.boundary)
+    integ = Theta.from_problem(problem, theta=0.5, model=springs, load=load)
     # a large rigid turn, plus a wave straining the chords by a few 1e-3
     X, angle = space.x, 0.3  # rad
     u = integ.u.x.array

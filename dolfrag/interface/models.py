@@ -36,6 +36,7 @@ class Elastic:
     """Linear springs C_N, C_T (Pa/m) in tension and compression; no state, never broken."""
 
     can_break = False
+    STATE = ()  # what a checkpoint keeps
 
     def __init__(self, n_links, C_N, C_T):
         self.C_N, self.C_T, self.n_links = C_N, C_T, n_links
@@ -79,6 +80,7 @@ class Rccm(_Model):
     """
 
     can_break = True
+    STATE = ("beta", "released")  # what a checkpoint keeps
 
     def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None, mu_i=0.0):
         self.C_N, self.C_T, self.w, self.b, self.mu, self.h = C_N, C_T, w, b, mu, h
@@ -248,6 +250,8 @@ class Threshold(_Rigid):
     R_c g_mid at the step the mid-step gap passes W_eth (R_c W_eth to within one step's
     opening)."""
 
+    STATE = ("work", "released", "lost")  # what a checkpoint keeps
+
     def __init__(self, n_links, R_c, W_eth, mu=0.0):
         super().__init__(n_links, mu)
         self.R_c, self.W_eth = R_c, W_eth
@@ -313,6 +317,8 @@ class LinearSoftening(_Rigid):
     problem stays monotone) and the drop S_n -> S at the mid jump is booked as released
     energy; at the switch, the cohesive work done while rigid less the energy of the new
     secant is released."""
+
+    STATE = ("work", "released", "delta_max", "sprung")  # what a checkpoint keeps
 
     def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf):
         super().__init__(n_links, mu)
@@ -393,3 +399,58 @@ def _no_springs(g_T, state_n):
     zeros = np.zeros(n)
     return Cohesion(zeros, np.zeros((n, m)), zeros, np.zeros((n, m, m)), np.zeros((n, m)),
                     np.zeros((n, m)), state_n)
+
+
+class Law(NamedTuple):
+    """One interface law of the case's ``interface.law``: how to build its model, and what
+    the rest of the code may ask of it.
+
+    build(interface, n_links, C_N, C_T, h, k_step): the model (interface: config.Interface;
+    C_N, C_T Pa/m from the stiffness rule; h s the time step; k_step Pa/m per link, the
+    step's own stiffness, solver/semismooth.step_stiffness). breakable: links can break;
+    rigid: links are constraints until they open (no springs, C_N and C_T unused); springs:
+    linear springs everywhere, stepped by star blocks inverted once (imex cannot prescribe
+    velocities through them); theta: available with the theta scheme.
+    """
+    build: object
+    breakable: bool
+    rigid: bool
+    springs: bool
+    theta: bool
+
+    def tensile_strength(self, interface, C_N):
+        """Peak tensile traction (Pa) of this law with normal stiffness C_N (Pa/m): R_c of a
+        threshold, sigma_c, or sqrt(C_N w) for RCCM given w; None without one (elastic)."""
+        if self.springs:
+            return None
+        if interface.R_c is not None:
+            return interface.R_c
+        if interface.sigma_c is None:
+            return float(np.sqrt(C_N * interface.w))
+        return interface.sigma_c
+
+
+LAWS = {
+    "elastic": Law(lambda i, n, C_N, C_T, h, k: Elastic(n, C_N, C_T), False, False, True, True),
+    "rccm": Law(lambda i, n, C_N, C_T, h, k: Rccm(n, C_N, C_T, i.adhesion_energy(C_N), i.b, i.mu, h, i.mu_i),
+                True, False, False, True),
+    "rccm_decoupled": Law(lambda i, n, C_N, C_T, h, k: RccmDecoupled(n, C_N, C_T, i.sigma_c, i.G_c, i.mu, i.mu_i),
+                          True, False, False, True),
+    "threshold": Law(lambda i, n, C_N, C_T, h, k: Threshold(n, i.R_c, i.W_eth, i.mu), True, True, False, False),
+    "linear_softening": Law(lambda i, n, C_N, C_T, h, k: LinearSoftening(n, i.sigma_c, i.G_c, i.mu, k_open=k),
+                            True, True, False, False),
+}
+
+
+def law(interface):
+    """The Law of ``interface`` (config.Interface)."""
+    return LAWS[interface.law]
+
+
+def build(interface, E, size, n_links, h, k_step=np.inf):
+    """The model of ``interface`` (config.Interface) on n_links links, its springs by the
+    stiffness rule of E (Pa) and the mesh size (m); h (s) the time step (viscous RCCM);
+    k_step (Pa/m, per link) the step's own stiffness, where linear softening leaves its
+    rigid constraint."""
+    C_N, C_T = interface.stiffness(E, size)
+    return law(interface).build(interface, n_links, C_N, C_T, h, k_step)

@@ -29,16 +29,22 @@ def dof_damage(space, links, link_damage, out):
 class RunOutput:
     """Files of one run in ``out``; rank 0 writes CSV and JSON, VTK is collective."""
 
-    def __init__(self, out, comm, columns, fields=True):
+    def __init__(self, out, comm, columns, fields=True, resume_step=None):
+        """resume_step: continue a run from its checkpoint after this step: history.csv
+        keeps its rows up to it, the fields go to a series of their own (run/fields.py)."""
         self.out, self.comm = Path(out), comm
         if comm.rank == 0:
             (self.out / "figures").mkdir(parents=True, exist_ok=True)
-            self._csv_file = open(self.out / "history.csv", "w", newline="")
+            if resume_step is None:
+                self._csv_file = open(self.out / "history.csv", "w", newline="")
+                csv.writer(self._csv_file).writerow(columns)
+            else:
+                self._csv_file = _history_up_to(self.out / "history.csv", resume_step)
             self._csv = csv.writer(self._csv_file)
-            self._csv.writerow(columns)
             self._csv_file.flush()
         comm.barrier()
-        self._vtk = compat.vtk_file(comm, self.out / "fields.pvd") if fields else None
+        self.fields_name = "fields.pvd" if resume_step is None else f"fields-from-step{resume_step}.pvd"
+        self._vtk = compat.vtk_file(comm, self.out / self.fields_name) if fields else None
 
     def row(self, values):
         if self.comm.rank == 0:
@@ -82,3 +88,15 @@ class RunOutput:
             self._vtk.close()
         if self.comm.rank == 0:
             self._csv_file.close()
+
+
+def _history_up_to(path, step):
+    """history.csv opened for appending, its rows after ``step`` (written after the last
+    checkpoint) removed."""
+    f = open(path, "r+", newline="")
+    lines = f.readlines()
+    keep = lines[:1] + [line for line in lines[1:] if int(float(line.split(",", 1)[0])) <= step]
+    f.seek(0)
+    f.writelines(keep)
+    f.truncate()
+    return f

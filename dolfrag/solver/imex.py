@@ -27,6 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import compat
+from dolfrag.solver.semismooth import StarNewton, step_stiffness
 from dolfrag.timing import PhaseTimer
 
 
@@ -101,6 +102,8 @@ class Imex:
     displacement, so with bars each step ends with a forward scatter of u.
     """
 
+    STATE = ("u", "v", "t", "n", "work", "_g", "_g_before", "_u_n")  # what a checkpoint keeps
+
     def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
         self.rebars = rebars
@@ -125,6 +128,19 @@ class Imex:
         self._g = jump(self.u.x.array)
         self._g_before = self._g.copy()  # g_{n-1}
         self._imposed = None
+
+    @classmethod
+    def from_problem(cls, problem, h=None, load=None, pressure=None, step=None):
+        """The integrator of ``problem`` (problem.Problem) with steps of h (s; default the
+        problem's), a fresh interface model and its star step solver (``step``, a class
+        called as StarNewton, for a nonsmooth law; linear springs get ElasticSprings), the
+        problem's load vector and pressure unless given."""
+        h = h or problem.h
+        m = problem.bulk.m.x.array
+        model = problem.interface_model(h, step_stiffness(problem.links, m, h, problem.space.gdim))
+        solver = ElasticSprings if problem.law.springs else step or StarNewton
+        return cls(problem.space, problem.bulk, problem.jump, solver(problem.stars, problem.jump, model, m, h),
+                   problem.load if load is None else load, pressure or problem.pressure, h, rebars=problem.rebars)
 
     def impose(self, comps, velocity):
         """Prescribe the velocity of supported components from now on: ``velocity(t)``

@@ -157,6 +157,9 @@ class Theta:
     finish. Collective.
     """
 
+    # what a checkpoint keeps (a resumed run refactorises at its first step)
+    STATE = ("u", "v", "t", "n", "work", "numerical", "r", "_g", "_x_last", "_h_last", "_depth", "_deepest", "_calm")
+
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(),
                  max_iterations=30, rtol=1e-10, max_cuts=4, rebars=None):
         if not 0.5 <= theta <= 1.0:
@@ -200,6 +203,18 @@ class Theta:
         self._r_global = start + n_x + np.arange(n_r).reshape(-1, d)
         self._build_pattern()
         self._create_solver(n_x + n_r, start)
+
+    @classmethod
+    def from_problem(cls, problem, h=None, theta=None, model=None, load=None, pressure=None, rebars=True, **newton):
+        """The integrator of ``problem`` (problem.Problem): steps of h (s) and theta (default
+        the case's), a fresh interface model unless ``model`` is given, the problem's load
+        vector, pressure and bars (rebars=False: none), its supports held; ``newton``:
+        max_iterations, rtol, max_cuts."""
+        theta = problem.case.time.theta if theta is None else theta
+        return cls(problem.space, problem.bulk, problem.jump, model or problem.interface_model(h),
+                   problem.load if load is None else load, pressure or problem.pressure, h or problem.h,
+                   0.5 if theta is None else theta, problem.stars.constrained,
+                   rebars=problem.rebars if rebars else None, **newton)
 
     # ------------------------------------------------------------------ setup
     def _owner_flags(self, constrained):

@@ -1,0 +1,123 @@
+"""The discrete problem of a case: mesh, space, bulk operators, links, stars, rebars,
+supports and load, built once by ``Problem.build(case, comm)``.
+
+A Problem holds no time-stepping state but the bars' (rebar.Rebars keeps its plastic strains
+beside its geometry): the integrators (solver/imex.py, solver/theta.py) are built from it
+and carry u, v, t and the interface model's state.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dolfrag import bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag.config import CaseError
+from dolfrag.interface import links as link_table, models
+from dolfrag.interface.jumps import Jump
+from dolfrag.interface.stars import Stars
+from dolfrag.solver.theta import accuracy_time_step
+from dolfrag.stretch import end_components
+
+
+@dataclass(frozen=True)
+class Problem:
+    """case: config.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
+    mass m, stiffness K, dt_crit s); rebars: rebar.Rebars or None; links, jump, stars:
+    interface/; held: flat local components held by the supports (a stretch's ends
+    included); load: Function of nodal forces per pascal; pressure: p(t) (Pa); h: the time
+    step (s), n_steps of it to case.time.end."""
+    case: object
+    comm: object
+    domain: object
+    space: object
+    bulk: object
+    rebars: object
+    links: object
+    jump: object
+    stars: object
+    held: np.ndarray
+    load: object
+    pressure: object
+    h: float
+    n_steps: int
+
+    @property
+    def dt_crit(self):
+        """The bulk's (and bars') stable explicit step (s)."""
+        return self.bulk.dt_crit
+
+    @property
+    def law(self):
+        """The interface law (interface/models.Law) of the case."""
+        return models.law(self.case.interface)
+
+    @property
+    def stiffness(self):
+        """(C_N, C_T) Pa/m: the interface springs by the case's stiffness rule."""
+        return self.case.interface.stiffness(self.case.material.E, self.case.mesh.size)
+
+    def interface_model(self, h=None, k_step=np.inf):
+        """A fresh interface model (all links sound) for steps of h (s; default the
+        problem's); k_step as in models.build."""
+        case = self.case
+        return models.build(case.interface, case.material.E, case.mesh.size, len(self.links), h or self.h, k_step)
+
+    @classmethod
+    def build(cls, case, comm):
+        """Mesh and operators of ``case`` (config.Case) on ``comm``. Collective. Raises
+        CaseError for a boundary name the mesh lacks."""
+        domain = mesh.build(case.geometry, case.mesh.size, comm)
+        _check_boundaries(case, domain)
+        space = spaces.create(domain)
+        bulk_ops = bulk.assemble(space, domain, case)
+        bars = _rebars(case, space, bulk_ops, comm)
+        links = link_table.build(space)
+        held = supports.constrained_components(space, domain, case.supports)
+        if case.load.kind == "stretch":  # its ends are supports whose velocity is prescribed
+            held = np.union1d(held, np.concatenate(end_components(space, domain)))
+        stars = Stars(space, links, held)
+        h, n_steps = _time_step(case, bulk_ops.dt_crit)
+        if case.load.kind == "pressure":
+            load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
+            pressure = loads.signal(case.load)
+        else:
+            load, pressure = compat.Function(space.V), np.zeros_like  # no pressure: p(t) = 0
+        return cls(case, comm, domain, space, bulk_ops, bars, links, Jump(space, links), stars, held, load,
+                   pressure, h, n_steps)
+
+
+def _check_boundaries(case, domain):
+    named = ([("load.boundary", case.load.boundary)] if case.load.kind == "pressure" else []) + [
+        (f"supports.{kind}", name) for kind in ("rollers", "clamped", "simple")
+        for name in getattr(case.supports, kind)]
+    for key, name in named:
+        if name not in domain.boundaries:
+            raise CaseError(f"{key} = {name!r}: not a boundary of the mesh; boundaries: "
+                            f"{', '.join(sorted(domain.boundaries)) or 'none'}")
+
+
+def _rebars(case, space, bulk_ops, comm):
+    """The case's bars (None without rebar.faces); their mass joins the bulk's, and their
+    stiffness its stable step."""
+    if not case.rebar.faces:
+        return None
+    lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
+    bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
+                        eps_u=case.rebar.eps_u)
+    bars.add_mass(bulk_ops.m.x.array)
+    # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
+    # mass, stays an upper bound
+    bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + bars.stiffness_bound(bulk_ops.m.x.array))
+    return bars
+
+
+def _time_step(case, dt_crit):
+    """(h s, n_steps): theta's step follows accuracy (it is unconditionally stable), imex's
+    the bulk's stable step; either is shortened to end exactly at time.end."""
+    time = case.time
+    if time.scheme == "theta":
+        h = time.dt or accuracy_time_step(case.load, time.end)
+    else:
+        h = time.cfl * dt_crit
+    n_steps = math.ceil(time.end / h)
+    return time.end / n_steps, n_steps

@@ -1,0 +1,113 @@
+"""Checkpoints: each rank's state of a run in <out>/checkpoint/, written atomically (a
+temporary file, then a rename), so that a run stopped at any moment resumes from the last
+complete one on the same number of ranks.
+
+What a stateful object keeps is named by its ``STATE`` attribute (attribute names); an
+object without one (a step solver) gives every array, number and list of objects among its
+attributes. Arrays are restored in place, so that views other objects hold stay valid.
+"""
+import copy
+import os
+import pickle
+from pathlib import Path
+
+import numpy as np
+
+from dolfrag.config import CaseError
+
+FOLDER = "checkpoint"
+_NUMBERS = (np.ndarray, float, int, bool, np.number)
+
+
+def _value(value):
+    if hasattr(value, "x") and hasattr(value.x, "array"):  # a dolfinx Function
+        return value.x.array.copy()
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, list) and value and all(hasattr(item, "__dict__") for item in value):
+        return [object_state(item) for item in value]
+    return copy.deepcopy(value)
+
+
+def _is_state(value):
+    return isinstance(value, _NUMBERS) or (isinstance(value, list) and bool(value)
+                                           and all(hasattr(item, "__dict__") for item in value))
+
+
+def object_state(obj):
+    """{attribute: copy of its value} of ``obj`` (module docstring); {} for None."""
+    if obj is None:
+        return {}
+    names = getattr(obj, "STATE", None)
+    if names is None:
+        names = [name for name, value in vars(obj).items() if _is_state(value)]
+    return {name: _value(getattr(obj, name)) for name in names}
+
+
+def restore_object(obj, state):
+    """Put back what object_state(obj) returned."""
+    for name, saved in state.items():
+        current = getattr(obj, name, None)  # a step solver sets some attributes at its first step
+        if hasattr(current, "x") and hasattr(current.x, "array"):
+            current.x.array[:] = saved
+        elif isinstance(current, np.ndarray) and isinstance(saved, np.ndarray) and current.shape == saved.shape \
+                and current.dtype == saved.dtype:
+            current[...] = saved
+        elif isinstance(current, list) and isinstance(saved, list) and all(isinstance(s, dict) for s in saved) \
+                and all(hasattr(item, "__dict__") for item in current):
+            for item, item_state in zip(current, saved):
+                restore_object(item, item_state)
+        else:
+            setattr(obj, name, saved)
+
+
+def _path(out, comm):
+    return Path(out) / FOLDER / f"rank{comm.rank:05d}-of-{comm.size:05d}.pkl"
+
+
+def write(out, comm, data):
+    """Write this rank's ``data`` (picklable) atomically. Collective: every rank has written
+    its temporary file before any renames, so a stop in between leaves the previous
+    checkpoint of every rank, or the new one of some (load tells by the step)."""
+    path = _path(out, comm)
+    if comm.rank == 0:
+        path.parent.mkdir(exist_ok=True)
+    comm.barrier()
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as f:
+        pickle.dump(data, f, protocol=pickle.HIGHEST_PROTOCOL)
+        f.flush()
+        os.fsync(f.fileno())
+    comm.barrier()
+    os.replace(tmp, path)
+    comm.barrier()
+
+
+def case_of(out):
+    """The config.Case a checkpoint in ``out`` was written for (rank 0's file). Raises
+    CaseError when there is none."""
+    files = sorted((Path(out) / FOLDER).glob("rank00000-of-*.pkl"))
+    if not files:
+        raise CaseError(f"--resume {out}: no checkpoint in it ({Path(out) / FOLDER} has no rank files)")
+    with open(files[0], "rb") as f:
+        return pickle.load(f)["case"]
+
+
+def load(out, comm):
+    """This rank's checkpoint data. Collective. Raises CaseError (the same on every rank)
+    when the rank count differs or the ranks' files are of different steps."""
+    path = _path(out, comm)
+    written = sorted(p.name.split("-of-")[1][:-4] for p in (Path(out) / FOLDER).glob("rank00000-of-*.pkl"))
+    data = None
+    if path.exists():
+        with open(path, "rb") as f:
+            data = pickle.load(f)
+    sizes = comm.allgather(None if data is None else data["step"])
+    if None in sizes:
+        raise CaseError(f"--resume {out}: the checkpoint was written on {', '.join(map(str, map(int, written)))} "
+                        f"rank(s); resume it with mpirun -n {int(written[0]) if written else '?'} "
+                        f"(this run has {comm.size})")
+    if len(set(sizes)) > 1:
+        raise CaseError(f"--resume {out}: the ranks' checkpoints are of different steps {sorted(set(sizes))} "
+                        "(a stop while they were renamed); no consistent checkpoint to resume from")
+    return data

@@ -1,0 +1,155 @@
+"""`run(case, out)`: build the problem, step it through the time loop with its observers,
+and write summary.json once, at the end (completed, failed or interrupted)."""
+import hashlib
+from pathlib import Path
+from time import perf_counter
+
+import numpy as np
+from mpi4py import MPI
+
+from dolfrag import __version__
+from dolfrag.config import Case, CaseError, load_case
+from dolfrag.post.output import RunOutput
+from dolfrag.problem import Problem
+from dolfrag.progress import Progress
+from dolfrag.run import checkpoint
+from dolfrag.run.breaks import BreakTimes
+from dolfrag.run.context import RunContext
+from dolfrag.run.fields import FieldSnapshots
+from dolfrag.run.final import common_figures, finish
+from dolfrag.run.fragment_times import RequestedFragments
+from dolfrag.run.history import History, Probes, RebarForce
+from dolfrag.run.loop import time_loop
+from dolfrag.run.reports import REPORTS
+from dolfrag.run.signals import Stop
+from dolfrag.solver.imex import Imex
+from dolfrag.solver.semismooth import ConvergenceError
+from dolfrag.solver.theta import Theta
+from dolfrag.stretch import Stretch
+
+
+def integrator(problem):
+    """The case's integrator (time.scheme), built from ``problem``."""
+    return (Theta if problem.case.time.scheme == "theta" else Imex).from_problem(problem)
+
+
+def prepare(problem):
+    """(integrator, stretch): the case's integrator, and for a stretch load its
+    stretch.Stretch, started on it (else None). Collective."""
+    integ, case, stretch = integrator(problem), problem.case, None
+    if case.load.kind == "stretch":
+        stretch = Stretch(problem.space, problem.domain, case.load.strain_rate)
+        stretch.start(integ, problem.stars.comps)
+    return integ, stretch
+
+
+def resume_command(out, comm):
+    return ("" if comm.size == 1 else f"mpirun -n {comm.size} ") + f"dolfrag run --resume {out}"
+
+
+def run(case, out, quiet=False, comm=None, resume=False):
+    """Run ``case`` (a config.Case, a case file path or a built-in name; ignored with
+    ``resume``, which continues the run whose checkpoint is in ``out``); write
+    summary.json, history.csv, fields.pvd, links.csv and figures/ into ``out``. Collective.
+    Returns the summary dict; its "status" is "interrupted" after SIGINT or SIGTERM."""
+    comm = comm or MPI.COMM_WORLD
+    out = Path(out)
+    if resume:
+        case = checkpoint.case_of(out)
+    elif not isinstance(case, Case):
+        case = load_case(case)
+    wall_start = perf_counter()
+    problem = Problem.build(case, comm)
+    integ, stretch = prepare(problem)
+    saved = checkpoint.load(out, comm) if resume else None
+    if saved is not None and saved["layout"] != _layout(problem):
+        raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")
+    first_step = saved["step"] if saved else 0
+    ctx = RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan))
+    reports = [report(ctx) for report in REPORTS if report.applies(case)]
+    history = History(ctx)
+    rows = [history, Probes(ctx), *(r for r in reports if hasattr(r, "values")),
+            *([RebarForce(ctx)] if RebarForce.applies(problem) else [])]
+    fields = FieldSnapshots(ctx, None, saved and first_step)
+    output = RunOutput(out, comm, [c for row in rows for c in row.columns], fields=bool(fields.steps),
+                       resume_step=saved and first_step)
+    fields.output = output
+    observers = [BreakTimes(ctx), fields, RequestedFragments(ctx), *(r for r in reports if hasattr(r, "observe"))]
+    stateful = {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
+                "stretch": stretch, **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
+    before = 0.0  # s of wall time of the segments before this one
+    if saved is not None:
+        for name, obj in stateful.items():
+            checkpoint.restore_object(obj, saved["objects"][name])
+        before = saved["wall_time_s"]
+
+    def save(k):
+        checkpoint.write(out, comm, {"case": case, "step": k, "layout": _layout(problem),
+                                     "wall_time_s": before + perf_counter() - wall_start,
+                                     "objects": {n: checkpoint.object_state(o) for n, o in stateful.items()}})
+
+    summary = _header(case, problem, integ, comm)
+    if saved is not None:
+        summary["resumed_from_step"] = first_step
+    progress = Progress(problem.n_steps, quiet=quiet, rank=comm.rank)
+    stop = Stop(comm)
+    try:
+        with stop:
+            if saved is None:
+                fields.start()
+            try:
+                last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step)
+            except ConvergenceError:
+                output.failure(lambda vtk: fields.write(integ.t, vtk))  # the state, for a look
+                raise
+        summary["timings_s"] = integ.timer.summary(comm)
+        # star solves accepted at their best iterate within semismooth.GIVE_UP (imex)
+        summary["stalled_star_solves"] = comm.allreduce(integ.interface.stalled)
+        summary["status"] = "completed" if last == problem.n_steps else "interrupted"
+    except BaseException as err:
+        summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"
+        _close(summary, history, integ, output, fields, saved, before + perf_counter() - wall_start)
+        output.summary(summary)
+        raise
+    _close(summary, history, integ, output, fields, saved, before + perf_counter() - wall_start)
+    if summary["status"] != "completed":
+        summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm))
+        output.summary(summary)
+        return summary
+    final = finish(ctx, output, fields.damage, summary["wall_time_s"], summary)
+    for observer in dict.fromkeys(rows[1:] + observers + reports):  # each once, in order
+        if hasattr(observer, "summarise"):
+            observer.summarise(summary, final)
+    output.summary(summary)
+    if case.output.figures:
+        folder = out / "figures"
+        common_figures(ctx, folder, final)
+        for report in reports:
+            report.figures(folder, final)
+    return summary
+
+
+def _close(summary, history, integ, output, fields, saved, wall_time):
+    """Close history.csv and fields.pvd; the steps, wall time and energies into ``summary``."""
+    summary["steps_done"] = integ.n
+    summary["wall_time_s"] = wall_time
+    history.summarise(summary)
+    output.close()
+    fields.close(saved["objects"]["integrator"]["t"] if saved else 0.0)
+
+
+def _header(case, problem, integ, comm):
+    space = problem.space
+    return {"case": case.to_dict(), "version": __version__, "ranks": comm.size,
+            "cells": space.mesh.topology.index_map(space.mesh.topology.dim).size_global,
+            "links": comm.allreduce(len(problem.links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
+            "steps": problem.n_steps, "dt_s": integ.h, "dt_crit_s": problem.dt_crit,
+            "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
+            "status": "running"}
+
+
+def _layout(problem):
+    """This rank's share of the mesh: owned dofs, links, and a digest of the dof coordinates."""
+    space = problem.space
+    digest = hashlib.sha1(np.ascontiguousarray(space.x).tobytes()).hexdigest()
+    return space.n_owned_dofs, len(problem.links), digest

@@ -1,0 +1,54 @@
+"""What every completed run reports at its end: the fragments, links.csv, and the common
+figures (velocity, exploded velocity_x, damage, load)."""
+from typing import NamedTuple
+
+import numpy as np
+
+from dolfrag import loads
+from dolfrag.post.figures import broken_mesh_png, exploded, signal_png
+from dolfrag.post.output import dof_damage
+
+# velocity_x.png: each fragment moved off the body's centre by this share of its centroid
+# offset, so that cracks a few micrometres wide show (Fig. 6 of the paper *Study and
+# simulation of fragmentation phenomena of concrete structures under stuffy explosion*)
+EXPLODE = 0.1
+
+
+class Final(NamedTuple):
+    """fragments: post.fragments.Fragments at the end (displaced); fragment_of_cell: each
+    owned cell's fragment; links: links.csv's rows on rank 0 (None elsewhere); damage: the
+    DG damage Function; wall_time: s since the run started; summary: the summary dict."""
+    fragments: object
+    fragment_of_cell: object
+    links: object
+    damage: object
+    wall_time: float
+    summary: dict
+
+
+def finish(ctx, output, damage, wall_time, summary):
+    """The Final of a completed run; writes links.csv and the summary's fragments. Collective."""
+    space, links, model = ctx.space, ctx.links, ctx.integ.model
+    frags, fragment_of_cell = ctx.fragments(of_cells=True)
+    axes = "xyz"[:space.gdim]
+    table = output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
+                         np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
+                                          model.damage(), model.broken(), ctx.break_time]))
+    summary["fragments"] = frags.to_dict()
+    dof_damage(space, links, model.damage(), damage)
+    return Final(frags, fragment_of_cell, table, damage, wall_time, summary)
+
+
+def common_figures(ctx, folder, final):
+    """velocity.png, velocity_x.png, damage.png, and load.png for a pressure load. Collective."""
+    space, integ, case = ctx.space, ctx.integ, ctx.case
+    v = integ.v.x.array.reshape(-1, space.gdim)
+    broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)")
+    broken_mesh_png(space, integ.u, v[:, 0], folder / "velocity_x.png", "velocity v_x (m/s)", scale=1.0,
+                    cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE),
+                    note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
+                         f"t = {integ.t * 1e6:.1f} us")
+    broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)")
+    if case.load.kind == "pressure":
+        signal_png(loads.signal(case.load), case.time.end, folder / "load.png", ctx.comm,
+                   f"load on '{case.load.boundary}' ({case.name})")

@@ -1,0 +1,81 @@
+"""history.csv's first columns: step, time, load, the energy balance, broken links and the
+Newton report; and the largest balance error of the run."""
+import numpy as np
+from mpi4py import MPI
+
+ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
+                  "D_numerical_J", "D_rebar_plastic_J", "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic",
+                 "external_work", "balance_error"]
+
+
+class History:
+    columns = ["step", "time_s", "load_Pa", *ENERGY_COLUMNS, "broken_links", "newton_iterations",
+               "newton_unconverged", "newton_residual"]
+    STATE = ("max_error", "max_work", "last")
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.max_error = self.max_work = 0.0  # J
+        self.last = None  # the last Energies
+
+    def values(self, step):
+        integ, comm, e = self.ctx.integ, self.ctx.comm, step.energies
+        self.last = e
+        self.max_error = max(self.max_error, abs(e.balance_error))
+        self.max_work = max(self.max_work, abs(e.external_work))
+        newton = [comm.allreduce(integ.interface.iterations, op=MPI.MAX),
+                  comm.allreduce(integ.interface.unconverged, op=MPI.SUM),
+                  comm.allreduce(integ.interface.residual, op=MPI.MAX)]
+        return [step.k, integ.energy_time, integ.pressure(step.t_n), *(getattr(e, a) for a in ENERGY_FIELDS),
+                e.broken_links, *newton]
+
+    def summarise(self, summary):
+        e = self.last
+        if e is not None:
+            summary["energies_J"] = {c: getattr(e, a) for c, a in zip(ENERGY_COLUMNS, ENERGY_FIELDS)}
+            summary["broken_links"] = e.broken_links
+        summary["max_abs_balance_error_J"] = self.max_error
+        summary["balance_error_relative"] = self.max_error / self.max_work if self.max_work else 0.0
+
+
+class Probes:
+    """The mean velocity of every named boundary (owned dofs), a history column per
+    component: v<axis>_<boundary>_m_s."""
+
+    def __init__(self, ctx):
+        space, domain = ctx.space, ctx.problem.domain
+        self.ctx, self.comps = ctx, {}
+        for name, tag in sorted(domain.boundaries.items()):
+            dofs = space.boundary_dofs(domain.facet_tags, tag)
+            dofs = dofs[dofs < space.n_owned_dofs]
+            for k, axis in enumerate("xyz"[:space.gdim]):
+                self.comps[f"v{axis}_{name}_m_s"] = space.gdim * dofs + k
+        self.columns = list(self.comps)
+
+    def values(self, step):
+        v = self.ctx.integ.v.x.array
+        sums = self.ctx.comm.allreduce(np.array([[v[c].sum(), len(c)] for c in self.comps.values()]).reshape(-1, 2))
+        return list(sums[:, 0] / np.maximum(sums[:, 1], 1))
+
+
+class RebarForce:
+    """The largest bar force (N, N/m in 2D) of the step, and the bars' summary block."""
+    columns = ["rebar_force_max_N"]
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+
+    @staticmethod
+    def applies(problem):
+        return problem.rebars is not None
+
+    def values(self, step):
+        return [self.ctx.comm.allreduce(self.ctx.integ.rebars.force_max, op=MPI.MAX)]
+
+    def summarise(self, summary, final):
+        bars, comm = self.ctx.integ.rebars, self.ctx.comm
+        summary["rebar"] = {"segments": bars.count, "peak_force_N": comm.allreduce(bars.peak_force, op=MPI.MAX),
+                            "plastic_work_J": comm.allreduce(bars.plastic_work),
+                            "ruptured_segments": bars.ruptures, "rupture_energy_J": comm.allreduce(bars.rupture_work),
+                            "units": "N and J per metre of depth in 2D"}

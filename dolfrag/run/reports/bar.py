@@ -1,0 +1,40 @@
+"""A bar loaded on one end (Hopkinson bar, spall): breaks from the free end, and the
+``shpb`` block at post.shpb.MEASURE_TIME (or the end of a shorter run)."""
+from dolfrag import analytic, loads
+from dolfrag.post import shpb
+from dolfrag.post.fragments import breaks_by_time
+from dolfrag.run.fragment_times import FragmentTimes
+
+
+def free_end(case):
+    """x (m) of the far end of a rectangle bar loaded on its left or right edge, else None."""
+    if case.geometry.kind != "rectangle" or case.load.boundary not in ("left", "right"):
+        return None
+    return case.geometry.length if case.load.boundary == "left" else 0.0
+
+
+class BarReport(FragmentTimes):
+    """Measures the fragments at MEASURE_TIME when the run reaches it."""
+
+    @staticmethod
+    def applies(case):
+        return free_end(case) is not None
+
+    def __init__(self, ctx):
+        super().__init__(ctx, {shpb.MEASURE_TIME} if ctx.case.time.end >= shpb.MEASURE_TIME else set())
+        self.free_end = free_end(ctx.case)
+
+    def summarise(self, summary, final):
+        case, integ = self.ctx.case, self.ctx.integ
+        summary["breaks"] = breaks_by_time(final.fragments, self.free_end)
+        measured_at, at_measure = self.measured.get(shpb.MEASURE_TIME, (integ.t, final.fragments))
+        sigma_c = self.ctx.problem.law.tensile_strength(case.interface, integ.model.C_N)
+        rho, E = case.material.rho, case.material.E
+        closed = None if sigma_c is None else analytic.bar_spall(
+            loads.signal(case.load), analytic.wave_speed(E, rho), rho, sigma_c, case.geometry.length,
+            loads.signal_end(case.load), at=measured_at)
+        summary["shpb"] = shpb.shpb_block(final.fragments, at_measure, measured_at, self.free_end, sigma_c, rho, E,
+                                          case.name, closed_form=closed)
+
+    def figures(self, folder, final):
+        pass  # the common figures show it

@@ -1,0 +1,47 @@
+"""SIGINT and SIGTERM stop a run at the end of the current step, on every rank together.
+
+A handler only raises a flag; the time loop reduces the flags of all ranks once a step
+(``Stop.requested``), so a signal that reaches one rank (mpirun, a batch scheduler) stops
+them all at the same step. ``DOLFRAG_SIGNAL_AT_STEP=N`` makes rank 0 send itself SIGTERM
+after step N: a stop at a known step, for the tests of checkpoint and resume.
+"""
+import os
+import signal
+
+import numpy as np
+from mpi4py import MPI
+
+EXIT_CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}  # 128 + the signal number, as shells report
+
+
+class Stop:
+    """Install with ``with Stop(comm) as stop:``; the old handlers come back on exit."""
+
+    def __init__(self, comm):
+        self.comm, self.signal = comm, None
+        at = os.environ.get("DOLFRAG_SIGNAL_AT_STEP")
+        self._send_at = int(at) if at and comm.rank == 0 else None
+        self._old = {}
+
+    def __enter__(self):
+        for sig in EXIT_CODES:
+            self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, handler in self._old.items():
+            signal.signal(sig, handler)
+
+    def _handle(self, signum, frame):
+        self.signal = signal.Signals(signum)
+
+    def requested(self, step, due):
+        """(stop, checkpoint): whether any rank got a signal, and whether any rank's
+        ``due`` (a checkpoint's wall-time interval has passed) is set. Collective."""
+        if step == self._send_at:
+            os.kill(os.getpid(), signal.SIGTERM)
+        flags = np.array([0 if self.signal is None else int(self.signal), int(due)])
+        self.comm.Allreduce(MPI.IN_PLACE, flags, op=MPI.MAX)
+        if flags[0] and self.signal is None:
+            self.signal = signal.Signals(int(flags[0]))
+        return bool(flags[0]), bool(flags[1])

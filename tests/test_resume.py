@@ -1,0 +1,86 @@
+"""Checkpoint, stop and resume (dolfrag/run/checkpoint.py, signals.py): a run stopped by
+SIGTERM at a known step and resumed ends as the uninterrupted run, on 1 and 2 ranks, with
+each step once in history.csv and each snapshot once in fields.pvd."""
+import csv
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT
+
+# a cracking bar: 48 imex steps, 112 broken links at 40 us (tests/test_same_results.py)
+RUN = ["shpb-be12", "--quiet", "--set", "time.end=40e-6", "--set", "output.every=1", "--set", "output.fields=4",
+       "--set", "output.figures=false"]
+STOP_AT = 20  # the step after which SIGTERM arrives
+
+
+def dolfrag(args, ranks, stop_at=None):
+    """``dolfrag args`` on ``ranks`` ranks (mpirun), SIGTERM sent by rank 0 to itself after step
+    ``stop_at``; the CompletedProcess (not checked)."""
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OPENBLAS_NUM_THREADS="1")
+    env.pop("DOLFRAG_SIGNAL_AT_STEP", None)
+    if stop_at is not None:
+        env["DOLFRAG_SIGNAL_AT_STEP"] = str(stop_at)
+    return subprocess.run(["mpirun", "-n", str(ranks), sys.executable, "-m", "dolfrag.cli", *map(str, args)],
+                          capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+
+
+def compared(summary):
+    """The numbers a resumed run must reproduce."""
+    return {"energies_J": summary["energies_J"], "broken_links": summary["broken_links"],
+            "fragments": summary["fragments"]["count"], "masses": sorted(summary["fragments"]["mass"]),
+            "shpb": summary["shpb"]["blocks"], "steps_done": summary["steps_done"]}
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_run_stopped_by_sigterm_and_resumed_ends_as_the_uninterrupted_run(tmp_path, ranks):
+    whole = dolfrag(["run", *RUN, "--out", tmp_path / "whole"], ranks)
+    assert whole.returncode == 0, whole.stderr
+    out = tmp_path / "stopped"
+    stopped = dolfrag(["run", *RUN, "--out", out], ranks, stop_at=STOP_AT)
+    assert stopped.returncode == 143, stopped.stderr  # 128 + SIGTERM
+    # dolfrag's own line; mpirun then adds its banner on a non-zero exit (lines of dashes)
+    lines = stopped.stderr.split("-" * 20)[0].strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in stopped.stderr and "SIGTERM" in lines[0], stopped.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["steps_done"] == STOP_AT
+    assert summary["resume"].endswith(f"dolfrag run --resume {out}") and summary["time_reached_s"] > 0
+    assert (ranks > 1) == summary["resume"].startswith(f"mpirun -n {ranks} ")
+    assert f"--resume {out}" in lines[0]
+    resumed = dolfrag(["run", "--resume", out, "--quiet"], ranks)
+    assert resumed.returncode == 0, resumed.stderr
+    expected = json.loads((tmp_path / "whole" / "summary.json").read_text())
+    got = json.loads((out / "summary.json").read_text())
+    # imex is deterministic: the resumed run repeats the same operations on the same bits
+    assert compared(got) == compared(expected)
+    assert got["status"] == "completed" and got["resumed_from_step"] == STOP_AT
+    with open(out / "history.csv") as f:
+        steps = [int(row["step"]) for row in csv.DictReader(f)]
+    assert steps == list(range(1, expected["steps"] + 1))
+    with open(tmp_path / "whole" / "history.csv") as f, open(out / "history.csv") as g:
+        assert f.read() == g.read()
+    times = [float(t) for t in re.findall(r'timestep="([^"]+)"', (out / "fields.pvd").read_text())]
+    whole_times = [float(t) for t in re.findall(r'timestep="([^"]+)"',
+                                                (tmp_path / "whole" / "fields.pvd").read_text())]
+    assert times == whole_times and len(times) == 5
+
+
+def test_resume_on_another_rank_count_is_refused_in_one_line(tmp_path):
+    out = tmp_path / "run"
+    assert dolfrag(["run", *RUN, "--out", out], 1, stop_at=5).returncode == 143
+    result = dolfrag(["run", "--resume", out], 2)
+    assert result.returncode != 0
+    assert "written on 1 rank(s); resume it with mpirun -n 1" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_cases_into_a_closed_pipe_prints_no_traceback():
+    # `true` reads nothing: the pipe is closed before the list is written
+    result = subprocess.run(f"{sys.executable} -m dolfrag.cli cases | true", shell=True, capture_output=True,
+                            text=True, cwd=ROOT)
+    assert result.stderr == ""
