@@ -56,6 +56,12 @@ class Problem:
         """(C_N, C_T) Pa/m: the interface springs by the case's stiffness rule."""
         return self.case.interface.stiffness(self.case.material.E, self.case.mesh.size)
 
+    def owned_cell_centroids(self):
+        """(n_owned_cells, gdim) m: the centroids of this rank's cells, which say where the
+        mesh was partitioned (checkpoint.owner_rule)."""
+        space = self.space
+        return space.x[space.cell_dofs[:space.n_owned_cells]].mean(axis=1)
+
     def interface_model(self, h=None, k_step=np.inf):
         """A fresh interface model (all links sound) for steps of h (s; default the
         problem's); k_step as in models.build."""
@@ -63,10 +69,11 @@ class Problem:
         return models.build(case.interface, case.material.E, case.mesh.size, len(self.links), h or self.h, k_step)
 
     @classmethod
-    def build(cls, case, comm):
-        """Mesh and operators of ``case`` (config.Case) on ``comm``. Collective. Raises
-        CaseError for a boundary name the mesh lacks."""
-        domain = mesh.build(case.geometry, case.mesh.size, comm)
+    def build(cls, case, comm, owner_rule=None):
+        """Mesh and operators of ``case`` (config.Case) on ``comm``; owner_rule: which rank
+        owns each cell, as in mesh.build (default: the graph partitioner's choice). Collective.
+        Raises CaseError for a boundary name the mesh lacks."""
+        domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule)
         _check_boundaries(case, domain)
         space = spaces.create(domain)
         bulk_ops = bulk.assemble(space, domain, case)

@@ -31,7 +31,7 @@ class RunOutput:
 
     def __init__(self, out, comm, columns, fields=True, resume_step=None):
         """resume_step: continue a run from its checkpoint after this step: history.csv
-        keeps its rows up to it, the fields go to a series of their own (run/fields.py)."""
+        keeps its rows up to it."""
         self.out, self.comm = Path(out), comm
         if comm.rank == 0:
             (self.out / "figures").mkdir(parents=True, exist_ok=True)
@@ -43,7 +43,8 @@ class RunOutput:
             self._csv = csv.writer(self._csv_file)
             self._csv_file.flush()
         comm.barrier()
-        self.fields_name = "fields.pvd" if resume_step is None else f"fields-from-step{resume_step}.pvd"
+        # the VTK writer's own index of this run segment (run/fields.py writes fields.pvd)
+        self.fields_name = f"fields-from-step{resume_step or 0}-.pvd"
         self._vtk = compat.vtk_file(comm, self.out / self.fields_name) if fields else None
 
     def row(self, values):

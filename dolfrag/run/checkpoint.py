@@ -12,6 +12,7 @@ import pickle
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from dolfrag.config import CaseError
 
@@ -59,6 +60,16 @@ def restore_object(obj, state):
                 restore_object(item, item_state)
         else:
             setattr(obj, name, saved)
+
+
+def owner_rule(centroids, comm):
+    """mesh.build's owner_rule giving each cell to the rank that owned it when the checkpoint
+    was written (DOLFINx's graph partitioner may split the same mesh differently from one
+    run to the next): centroids (n, gdim) m, this rank's owned cells then. Collective."""
+    parts = comm.allgather(np.asarray(centroids))
+    tree = cKDTree(np.concatenate(parts))
+    ranks = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
+    return lambda c: ranks[tree.query(c)[1]]
 
 
 def _path(out, comm):

@@ -59,9 +59,9 @@ def run(case, out, quiet=False, comm=None, resume=False):
     elif not isinstance(case, Case):
         case = load_case(case)
     wall_start = perf_counter()
-    problem = Problem.build(case, comm)
-    integ, stretch = prepare(problem)
     saved = checkpoint.load(out, comm) if resume else None
+    problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
+    integ, stretch = prepare(problem)
     if saved is not None and saved["layout"] != _layout(problem):
         raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")
     first_step = saved["step"] if saved else 0
@@ -85,6 +85,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
 
     def save(k):
         checkpoint.write(out, comm, {"case": case, "step": k, "layout": _layout(problem),
+                                     "cells": problem.owned_cell_centroids(),
                                      "wall_time_s": before + perf_counter() - wall_start,
                                      "objects": {n: checkpoint.object_state(o) for n, o in stateful.items()}})
 
@@ -108,10 +109,10 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary["status"] = "completed" if last == problem.n_steps else "interrupted"
     except BaseException as err:
         summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"
-        _close(summary, history, integ, output, fields, saved, before + perf_counter() - wall_start)
+        _close(summary, history, integ, output, fields, before + perf_counter() - wall_start)
         output.summary(summary)
         raise
-    _close(summary, history, integ, output, fields, saved, before + perf_counter() - wall_start)
+    _close(summary, history, integ, output, fields, before + perf_counter() - wall_start)
     if summary["status"] != "completed":
         summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm))
         output.summary(summary)
@@ -129,13 +130,13 @@ def run(case, out, quiet=False, comm=None, resume=False):
     return summary
 
 
-def _close(summary, history, integ, output, fields, saved, wall_time):
+def _close(summary, history, integ, output, fields, wall_time):
     """Close history.csv and fields.pvd; the steps, wall time and energies into ``summary``."""
     summary["steps_done"] = integ.n
     summary["wall_time_s"] = wall_time
     history.summarise(summary)
     output.close()
-    fields.close(saved["objects"]["integrator"]["t"] if saved else 0.0)
+    fields.close()
 
 
 def _header(case, problem, integ, comm):

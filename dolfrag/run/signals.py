@@ -2,8 +2,9 @@
 
 A handler only raises a flag; the time loop reduces the flags of all ranks once a step
 (``Stop.requested``), so a signal that reaches one rank (mpirun, a batch scheduler) stops
-them all at the same step. ``DOLFRAG_SIGNAL_AT_STEP=N`` makes rank 0 send itself SIGTERM
-after step N: a stop at a known step, for the tests of checkpoint and resume.
+them all at the same step. ``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name)
+makes rank 0 send itself SIGTERM (that signal) after step N, before its checkpoint: a stop at a
+known step, for the tests of checkpoint and resume.
 """
 import os
 import signal
@@ -19,8 +20,9 @@ class Stop:
 
     def __init__(self, comm):
         self.comm, self.signal = comm, None
-        at = os.environ.get("DOLFRAG_SIGNAL_AT_STEP")
+        at, _, name = os.environ.get("DOLFRAG_SIGNAL_AT_STEP", "").partition(":")
         self._send_at = int(at) if at and comm.rank == 0 else None
+        self._send = signal.Signals[name or "SIGTERM"]
         self._old = {}
 
     def __enter__(self):
@@ -39,7 +41,7 @@ class Stop:
         """(stop, checkpoint): whether any rank got a signal, and whether any rank's
         ``due`` (a checkpoint's wall-time interval has passed) is set. Collective."""
         if step == self._send_at:
-            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), self._send)
         flags = np.array([0 if self.signal is None else int(self.signal), int(due)])
         self.comm.Allreduce(MPI.IN_PLACE, flags, op=MPI.MAX)
         if flags[0] and self.signal is None:
