@@ -1,5 +1,7 @@
 """The theta (Moreau-Jean) integrator, solver/theta.py: discrete energy, agreement with
 imex, exact contact, step cutting, rank independence."""
+import dataclasses
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -11,6 +13,7 @@ from dolfrag.interface import models
 from dolfrag.problem import Problem
 from dolfrag.run.driver import run
 from dolfrag.solver.imex import Imex
+from dolfrag.solver.options import NewtonOptions
 from dolfrag.solver.theta import ConvergenceError, Theta, accuracy_time_step
 
 COARSE = ["mesh.size=0.004"]  # 724 triangles
@@ -18,9 +21,10 @@ INTACT_RCCM = ["interface.law=rccm", "interface.sigma_c=1e9"]  # nothing breaks:
 
 
 def build(overrides, h_factor=1.0, theta=0.5, **options):
-    """A Theta on the sound-bar case (serial), at h_factor times the imex step of the problem."""
+    """A Theta on the sound-bar case (serial), at h_factor times the imex step of the problem;
+    options: fields of NewtonOptions."""
     problem = Problem.build(load_case("sound-bar", overrides), MPI.COMM_SELF)
-    integ = Theta.from_problem(problem, h=h_factor * problem.h, theta=theta, **options)
+    integ = Theta.from_problem(problem, h=h_factor * problem.h, theta=theta, options=NewtonOptions(**options))
     return integ, int(np.ceil(problem.case.time.end / integ.h)), problem.dt_crit
 
 
@@ -123,7 +127,8 @@ def test_a_step_newton_cannot_finish_is_cut_and_reported_when_cutting_fails():
     for _ in range(7):  # in compression every link stays closed: 1 Newton iteration a step
         integ.step()
     # from t = 10.2 us the tail of the pulse opens links: Newton needs 6-7 iterations (measured)
-    integ.interface.max_iterations, integ.max_cuts = 1, 0
+    integ.options = dataclasses.replace(integ.options, max_cuts=0)
+    integ.interface.max_iterations = 1
     u_before, t_before = integ.u.x.array.copy(), integ.t
     with pytest.raises(ConvergenceError, match=r"at t = 1\.02439e-05 s .* Newton did not converge in 1 iterations"):
         integ.step()
@@ -213,8 +218,8 @@ def test_theta_jacobian_with_turning_bars_is_the_derivative_of_its_residual():
     state = point.bars.end
     assert np.count_nonzero(state.k > 0) > 3 and np.count_nonzero(state.N == 0) > 3
     assert np.count_nonzero((state.N > 0) & (state.k == 0)) > 3  # yielding
-    A = integ.A.convert("dense").getDenseArray()
-    free = np.flatnonzero(~integ._fixed[integ.owned])
+    A = integ.system.A.convert("dense").getDenseArray()
+    free = np.flatnonzero(~integ.residual.fixed[integ.owned])
     dx = 1e-6  # m/s: u_theta moves by theta^2 h dx = 2.5e-11 m, strains by 1e-9, off every kink here
     worst = 0.0
     for i in np.intersect1d(np.unique(integ.rebars.comps), free):

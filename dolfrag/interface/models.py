@@ -17,7 +17,7 @@ THRESHOLD_MARGIN = 1e-9
 
 # An RCCM link never reaches beta = 0 (the traction decays like w^2 / (C_N g^3)); it is
 # counted broken past 10 u0 (beta = 1/100, traction sigma_c / 1000), the criterion of
-# LMGC90's example scripts (PHYSICS.md §1).
+# LMGC90's example scripts.
 BROKEN_BETA = 1e-2
 
 
@@ -76,7 +76,8 @@ class Rccm(_Model):
     C_N, C_T Pa/m; w J/m^2 (peak traction sqrt(C_N w)); b J s/m^2 (0: rate-independent);
     mu -; h s (time step, for the viscous update); mu_i - (internal friction: the shear
     that drives damage is reduced by mu_i times the contact pressure,
-    laws.mohr_coulomb_shear; 0 is the seed's law).
+    laws.mohr_coulomb_shear; 0 is the law of *Study and simulation of fragmentation
+    phenomena of concrete structures under stuffy explosion*).
     """
 
     can_break = True
@@ -242,7 +243,8 @@ class _Rigid(_Model):
 
 
 class Threshold(_Rigid):
-    """The seed's rigid threshold law (laws.threshold): tension up to R_c (Pa) while the
+    """The rigid threshold law of *Study and simulation of fragmentation phenomena of
+    concrete structures under stuffy explosion* (laws.threshold): tension up to R_c (Pa) while the
     gap stays below W_eth (m), then broken for good; Coulomb friction mu on the cone
     shifted by R_c while cohesive, plain Coulomb after. State: 1.0 where broken, else 0.
 

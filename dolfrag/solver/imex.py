@@ -1,4 +1,4 @@
-"""The `imex` step: explicit bulk, implicit interface (shared/DESIGN.md §4).
+"""The `imex` step: explicit bulk, implicit interface.
 
 Central difference for the bulk with the lumped mass M, and the interface springs taken
 at the average ``(u_{n+1} + 2 u_n + u_{n-1}) / 4``. In velocity increments
@@ -21,34 +21,12 @@ Parallel data flow per step: K u on owned cells, one forward ghost update of the
 the star solves of owned vertices (no communication), one reverse update of the velocity
 increments to their owners.
 """
-from dataclasses import dataclass
-
 import numpy as np
-from mpi4py import MPI
 
 from dolfrag import compat
+from dolfrag.solver.energy import global_energies
 from dolfrag.solver.semismooth import StarNewton, step_stiffness
 from dolfrag.timing import PhaseTimer
-
-
-@dataclass
-class Energies:
-    """Global energies (J, or J/m in 2D) at the integrator's energy_time, and the broken-link count."""
-    kinetic: float
-    bulk: float
-    interface: float
-    damage: float
-    contact: float
-    external_work: float
-    broken_links: int
-    numerical: float = 0.0  # dissipated by the time scheme itself (theta > 1/2; 0 for imex)
-    rebar: float = 0.0  # elastic energy of the bars
-    plastic: float = 0.0  # dissipated by the bars' yielding
-
-    @property
-    def balance_error(self):
-        return (self.kinetic + self.bulk + self.interface + self.damage + self.contact + self.numerical
-                + self.rebar + self.plastic - self.external_work)
 
 
 class ElasticSprings:
@@ -221,11 +199,9 @@ class Imex:
         v, u = self.v.x.array[own], self.u.x.array[own]
         weight = self.jump.links.weight
         bars = self.rebars
-        local = np.array([0.5 * self.m[own] @ v**2, 0.5 * u @ Ku,
-                          weight @ self.model.stored_energy(*self.jump.local(g_mid)),
-                          weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
-                          np.count_nonzero(self.model.broken()),
-                          bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
-                          bars.dissipated if bars else 0.0])
-        total = self.space.mesh.comm.allreduce(local, op=MPI.SUM)
-        return Energies(*total[:6], int(total[6]), rebar=total[7], plastic=total[8])
+        return global_energies(self.space.mesh.comm, 0.5 * self.m[own] @ v**2, 0.5 * u @ Ku,
+                               weight @ self.model.stored_energy(*self.jump.local(g_mid)),
+                               weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
+                               np.count_nonzero(self.model.broken()),
+                               rebar=bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
+                               plastic=bars.dissipated if bars else 0.0)
