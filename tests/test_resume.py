@@ -15,7 +15,7 @@ from conftest import ROOT
 
 # a cracking bar: 48 imex steps, 112 broken links at 40 us (tests/test_same_results.py)
 RUN = ["shpb-be12", "--quiet", "--set", "time.end=40e-6", "--set", "output.every=1", "--set", "output.fields=4",
-       "--set", "output.figures=false"]
+       "--set", "output.figures=false", "--set", "output.fragments_at=[10e-6,35e-6]"]
 STOP_AT = 20  # the step after which SIGTERM arrives
 
 
@@ -34,7 +34,8 @@ def compared(summary):
     """The numbers a resumed run must reproduce."""
     return {"energies_J": summary["energies_J"], "broken_links": summary["broken_links"],
             "fragments": summary["fragments"]["count"], "masses": sorted(summary["fragments"]["mass"]),
-            "shpb": summary["shpb"]["blocks"], "steps_done": summary["steps_done"]}
+            "shpb": summary["shpb"]["blocks"], "steps_done": summary["steps_done"],
+            "fragments_at": [(f["time_s"], f["count"], sorted(f["mass"])) for f in summary["fragments_at"]]}
 
 
 def assert_same_run(got, expected, ranks):
@@ -47,6 +48,7 @@ def assert_same_run(got, expected, ranks):
         return
     assert got["broken_links"] == expected["broken_links"] and got["steps_done"] == expected["steps_done"]
     assert got["fragments"]["count"] == expected["fragments"]["count"]
+    assert [f["count"] for f in got["fragments_at"]] == [f["count"] for f in expected["fragments_at"]]
     work = expected["energies_J"]["W_external_J"]
     for name, value in expected["energies_J"].items():
         assert abs(got["energies_J"][name] - value) <= 1e-6 * work, name

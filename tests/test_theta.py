@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from conftest import mpirun
 from dolfrag import loads
@@ -252,3 +253,14 @@ def test_reusing_the_factorisation_in_hand_changes_the_work_not_the_answer():
     assert np.abs(u_reuse - u_fresh).max() < 1e-8 * np.abs(u_fresh).max()
     work = max(e.external_work for e in h_fresh)
     assert max(abs(e.balance_error) for e in h_reuse) < 1e-10 * work
+
+
+def test_theta_writes_nothing_into_petsc_options_and_sets_mumps_workspace_on_its_factor():
+    before = PETSc.Options().getAll()
+    integ, _, _ = build([*COARSE, *INTACT_RCCM], h_factor=3.0)  # contact: MUMPS' LU
+    for _ in range(3):
+        integ.step()
+    assert PETSc.Options().getAll() == before  # a second integrator in the process starts alike
+    pc = integ.system.ksp.getPC()
+    assert pc.getFactorSolverType() == "mumps"
+    assert pc.getFactorMatrix().getMumpsIcntl(14) == 20  # MUMPS' default relaxation (%), set on the factor
