@@ -66,15 +66,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
         raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")
     first_step = saved["step"] if saved else 0
     ctx = RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan))
-    reports = [report(ctx) for report in REPORTS if report.applies(case)]
-    history = History(ctx)
-    rows = [history, Probes(ctx), *(r for r in reports if hasattr(r, "values")),
-            *([RebarForce(ctx)] if RebarForce.applies(problem) else [])]
-    fields = FieldSnapshots(ctx, None, saved and first_step)
-    output = RunOutput(out, comm, [c for row in rows for c in row.columns], fields=bool(fields.steps),
-                       resume_step=saved and first_step)
-    fields.output = output
-    observers = [BreakTimes(ctx), fields, RequestedFragments(ctx), *(r for r in reports if hasattr(r, "observe"))]
+    history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
     stateful = {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
                 "stretch": stretch, **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
     before = 0.0  # s of wall time of the segments before this one
@@ -117,17 +109,40 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm))
         output.summary(summary)
         return summary
+    _complete(ctx, output, fields, summary, [*rows[1:], *observers, *reports], reports)
+    return summary
+
+
+def _observers(ctx, resume_step):
+    """(history, rows, observers, reports, fields, output) of a run: the history columns'
+    providers in order (history first), the observers of every step, the per-kind reports
+    that apply, the field snapshots, and the RunOutput (history.csv continued after
+    resume_step, if given)."""
+    reports = [report(ctx) for report in REPORTS if report.applies(ctx.case)]
+    history = History(ctx)
+    rows = [history, Probes(ctx), *(r for r in reports if hasattr(r, "values")),
+            *([RebarForce(ctx)] if RebarForce.applies(ctx.problem) else [])]
+    fields = FieldSnapshots(ctx, None, resume_step)
+    output = RunOutput(ctx.out, ctx.comm, [c for row in rows for c in row.columns], fields=bool(fields.steps),
+                       resume_step=resume_step)
+    fields.output = output
+    observers = [BreakTimes(ctx), fields, RequestedFragments(ctx), *(r for r in reports if hasattr(r, "observe"))]
+    return history, rows, observers, reports, fields, output
+
+
+def _complete(ctx, output, fields, summary, summarising, reports):
+    """A completed run's end: fragments and links.csv, every block of summary.json (written
+    once, here), the figures. Collective."""
     final = finish(ctx, output, fields.damage, summary["wall_time_s"], summary)
-    for observer in dict.fromkeys(rows[1:] + observers + reports):  # each once, in order
+    for observer in dict.fromkeys(summarising):  # each once, in order
         if hasattr(observer, "summarise"):
             observer.summarise(summary, final)
     output.summary(summary)
-    if case.output.figures:
-        folder = out / "figures"
+    if ctx.case.output.figures:
+        folder = ctx.out / "figures"
         common_figures(ctx, folder, final)
         for report in reports:
             report.figures(folder, final)
-    return summary
 
 
 def _close(summary, history, integ, output, fields, wall_time):

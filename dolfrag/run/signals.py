@@ -8,6 +8,7 @@ known step, for the tests of checkpoint and resume.
 """
 import os
 import signal
+import threading
 
 import numpy as np
 from mpi4py import MPI
@@ -26,8 +27,9 @@ class Stop:
         self._old = {}
 
     def __enter__(self):
-        for sig in EXIT_CODES:
-            self._old[sig] = signal.signal(sig, self._handle)
+        if threading.current_thread() is threading.main_thread():  # elsewhere Python cannot catch signals
+            for sig in EXIT_CODES:
+                self._old[sig] = signal.signal(sig, self._handle)
         return self
 
     def __exit__(self, *exc):
