@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 from dolfrag.config import CaseError
 
 FOLDER = "checkpoint"
+CASE = "case.pkl"
 _NUMBERS = (np.ndarray, float, int, bool, np.number)
 
 
@@ -76,32 +77,40 @@ def _path(out, comm):
     return Path(out) / FOLDER / f"rank{comm.rank:05d}-of-{comm.size:05d}.pkl"
 
 
-def write(out, comm, data):
-    """Write this rank's ``data`` (picklable) atomically. Collective: every rank has written
-    its temporary file before any renames, so a stop in between leaves the previous
-    checkpoint of every rank, or the new one of some (load tells by the step)."""
+def _temporary(obj, path):
+    """Pickle ``obj`` into path.tmp, on disk; return that path (renamed by the caller)."""
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as f:
+        pickle.dump(obj, f, protocol=pickle.HIGHEST_PROTOCOL)
+        f.flush()
+        os.fsync(f.fileno())
+    return tmp
+
+
+def write(out, comm, data, case):
+    """Write this rank's ``data`` (picklable) atomically, and the config.Case (rank 0).
+    Collective: every rank has written its temporary file before any renames, so a stop in
+    between leaves the previous checkpoint of every rank, or the new one of some (load
+    tells by the step)."""
     path = _path(out, comm)
     if comm.rank == 0:
         path.parent.mkdir(exist_ok=True)
+        os.replace(_temporary(case, path.parent / CASE), path.parent / CASE)
     comm.barrier()
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as f:
-        pickle.dump(data, f, protocol=pickle.HIGHEST_PROTOCOL)
-        f.flush()
-        os.fsync(f.fileno())
+    tmp = _temporary(data, path)
     comm.barrier()
     os.replace(tmp, path)
     comm.barrier()
 
 
 def case_of(out):
-    """The config.Case a checkpoint in ``out`` was written for (rank 0's file). Raises
-    CaseError when there is none."""
-    files = sorted((Path(out) / FOLDER).glob("rank00000-of-*.pkl"))
-    if not files:
-        raise CaseError(f"--resume {out}: no checkpoint in it ({Path(out) / FOLDER} has no rank files)")
-    with open(files[0], "rb") as f:
-        return pickle.load(f)["case"]
+    """The config.Case a checkpoint in ``out`` was written for. Raises CaseError when there
+    is none."""
+    path = Path(out) / FOLDER / CASE
+    if not path.exists():
+        raise CaseError(f"--resume {out}: no checkpoint in it ({path} is missing)")
+    with open(path, "rb") as f:
+        return pickle.load(f)
 
 
 def load(out, comm):

@@ -76,10 +76,11 @@ def run(case, out, quiet=False, comm=None, resume=False):
         before = saved["wall_time_s"]
 
     def save(k):
-        checkpoint.write(out, comm, {"case": case, "step": k, "layout": _layout(problem),
+        checkpoint.write(out, comm, {"step": k, "layout": _layout(problem),
                                      "cells": problem.owned_cell_centroids(),
                                      "wall_time_s": before + perf_counter() - wall_start,
-                                     "objects": {n: checkpoint.object_state(o) for n, o in stateful.items()}})
+                                     "objects": {n: checkpoint.object_state(o) for n, o in stateful.items()}},
+                         case)
 
     summary = _header(case, problem, integ, comm)
     if saved is not None:
