@@ -1,6 +1,6 @@
 """The `dolfrag` command: a thin layer over dolfrag.run.
 
-    dolfrag run CASE [--out DIR] [--set section.key=value ...] [--quiet]
+    dolfrag run CASE [--out DIR] [--overwrite] [--set section.key=value ...] [--quiet]
     dolfrag cases [NAME]
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
 
@@ -9,7 +9,9 @@ results/<case name>/load.png) and prints the PNG path, then the signal's peak (P
 and its time (s), impulse (Pa s) and duration (s) as `name = value` lines.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
-and one line naming the key, the value and what is allowed.
+and one line naming the key, the value and what is allowed. `run` refuses an --out
+folder that is not empty (a run never mixes its files with another's) unless
+--overwrite, which empties it first.
 """
 import argparse
 import sys
@@ -18,6 +20,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from dolfrag import guards, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 
 
@@ -27,7 +30,8 @@ def _parser():
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a case")
     run.add_argument("case", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
-    run.add_argument("--out", help="output directory (default: results/<case name>)")
+    run.add_argument("--out", help="output folder, new or empty (default: results/<case name>)")
+    run.add_argument("--overwrite", action="store_true", help="empty a non-empty --out folder first")
     run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                      help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable); "
                           "no value (--set time.dt=) removes it")
@@ -71,8 +75,11 @@ def main(argv=None):
         if args.command == "loads":
             _plot_load(case, args.out, comm)
             return 0
+        out = args.out or f"results/{case.name}"
+        guards.check(case)  # refuse before emptying the folder
+        outdir.prepare(out, args.overwrite, comm)
         from dolfrag.runner import run
-        summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
+        summary = run(case, out, quiet=args.quiet, comm=comm)
     except CaseError as err:
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)

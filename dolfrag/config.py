@@ -395,6 +395,14 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Run:
+    """[run]: limits checked before meshing (dolfrag/guards.py), sized for a 2-core, 24 GB
+    machine; raise them for a bigger one."""
+    max_cells: float = _f("float", 2.0e6, bounds="> 0")     # estimated cells, > 0
+    max_steps: float = _f("float", 1.0e7, bounds="> 0")     # estimated time steps, > 0
+
+
+@dataclass(frozen=True)
 class Case:
     name: str
     description: str
@@ -408,6 +416,7 @@ class Case:
     rebar: Rebar
     time: Time
     output: Output
+    run: Run
     source: Path | None = None       # the case file this came from
 
     def to_dict(self) -> dict:
@@ -416,7 +425,7 @@ class Case:
 
 
 _SECTIONS = {"geometry": Geometry, "mesh": Mesh, "material": Material, "interface": Interface,
-             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output}
+             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output, "run": Run}
 _TOP_KEYS = ("name", "description", *_SECTIONS, "materials")
 _PATH_KEYS = {f"{s}.{f.name}" for s, cls in _SECTIONS.items() for f in fields(cls)
               if "spec" in f.metadata and f.metadata["spec"].kind == "path"}

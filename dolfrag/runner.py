@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag import __version__, analytic, bulk, compat, guards, loads, mesh, rebar, rebar_layout, space as spaces, supports
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -206,6 +206,7 @@ def run(case, out, quiet=False, comm=None):
     comm = comm or MPI.COMM_WORLD
     if not isinstance(case, Case):
         case = load_case(case)
+    guards.report(case, comm)
     wall_start = time.perf_counter()
     domain, space, links, integ, n_steps, dt_crit, stretch = _setup(case, comm)
     probes = _probes(space, domain)
