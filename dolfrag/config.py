@@ -521,6 +521,12 @@ def _check(case: Case) -> None:
             if kind < other and both:
                 raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
                                 f"supports.{other} (a boundary may be in one list only)")
+    _check_rebar(case.rebar, case.geometry)
+    _check_groups(case)
+    late = [t for t in case.output.fragments_at if t > case.time.end]
+    if late:
+        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
+                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
     bars = case.rebar
     if bars.faces:
         if case.geometry.kind == "file":
@@ -535,6 +541,47 @@ def _check(case: Case) -> None:
     if load.boundary in sup.clamped:
         raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
                         "load.boundary (the loaded boundary may not be clamped)")
+
+
+BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)
+
+
+def _check_groups(case: Case) -> None:
+    """[materials.NAME] of a generated geometry: NAME is its one group (an imported mesh's
+    groups are checked once it is read, bulk.material_fields)."""
+    for name in case.materials:
+        if case.geometry.kind != "file" and name != BUILT_GROUP:
+            raise CaseError(f"materials.{name}: not a material group of the mesh; allowed: "
+                            f"{BUILT_GROUP!r} (the {case.geometry.kind}'s only group; more need geometry.kind = 'file')")
+
+
+def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
+    """[rebar] keys among themselves and against the geometry's dimension (the layers
+    themselves: rebar_layout.layer_polylines)."""
+    optional = ("cover", "diameter", "spacing", "f_y", "eps_u")
+    if not bars.faces:
+        for key in optional:
+            if getattr(bars, key) is not None:
+                raise CaseError(f"rebar.{key} = {getattr(bars, key)!r}: only allowed when rebar.faces is given "
+                                "(a list of faces to lay bars along)")
+        return
+    dim = geometry.tdim
+    if dim == 2 and bars.direction not in ("x", "y"):
+        raise CaseError(f"rebar.direction = {bars.direction!r}: in 2D must be 'x' or 'y' (the bar axis)")
+    for face in (f for f in bars.faces if f in BOX_BOUNDARIES):
+        normal = "xyz"[BOX_BOUNDARIES.index(face) // 2]
+        if not set(bars.direction) - {normal}:
+            raise CaseError(f"rebar.direction = {bars.direction!r}: no axis along face {face!r} of rebar.faces "
+                            f"(its normal is {normal}); allowed: axes other than {normal!r}")
+    if bars.diameter is not None and bars.spacing is not None and bars.diameter >= bars.spacing:
+        raise CaseError(f"rebar.diameter = {bars.diameter!r}: must be < rebar.spacing = {bars.spacing!r} m "
+                        "(neighbouring bars would overlap)")
+    if bars.diameter is not None and bars.cover is not None and bars.diameter / 2 > bars.cover:
+        raise CaseError(f"rebar.diameter = {bars.diameter!r}: must be <= 2 x rebar.cover = {2 * bars.cover:g} m "
+                        "(the cover is measured face to bar axis: a thicker bar sticks out of the body)")
+    if bars.eps_u is not None and bars.f_y is not None and bars.eps_u <= bars.f_y / bars.E:
+        raise CaseError(f"rebar.eps_u = {bars.eps_u!r}: must be > the yield strain rebar.f_y / rebar.E = "
+                        f"{bars.f_y / bars.E:.3g} (the bar yields before it ruptures)")
 
 
 STRETCHED = ("left", "right")  # the boundaries a stretch pulls apart along x

@@ -81,9 +81,9 @@ def check(case):
     loaded = AXES.get(case.load.boundary) if case.load.kind == "pressure" else None
     for axis, what in ((loaded, "loaded thickness"), (thinnest, "thinnest extent")):
         if axis is not None and axis < len(sides) and sides[axis] / h < THIN:
-            return (f"dolfrag: warning: {sides[axis] / h:.2g} elements across the {what} "
-                    f"{EXTENT_KEYS[axis]} = {sides[axis]:g} m (mesh.size = {h:g} m); "
-                    f"{THIN} or more resolve a wave or a bending crack")
+            return (f"dolfrag: warning: the {what} {EXTENT_KEYS[axis]} = {sides[axis]:g} m is only "
+                    f"{sides[axis] / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
+                    "resolve a wave or a bending crack")
     return None
 
 

@@ -187,6 +187,10 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
     finally:
         if comm.rank == 0:
             gmsh.finalize()
+    cells = msh.topology.index_map(tdim)
+    if comm.allreduce(cells.size_local, op=MPI.MIN) == 0:
+        raise CaseError(f"mesh.size = {size!r}: {cells.size_global} cells, too few for {comm.size} ranks "
+                        "(every rank must own a cell); run on fewer ranks or lower mesh.size")
     for dim in (tdim - 1, 0):
         msh.topology.create_connectivity(dim, tdim)
         msh.topology.create_connectivity(tdim, dim)
