@@ -1,6 +1,6 @@
 """Run outputs: history.csv (a row every few steps, flushed, so a crash loses nothing
-written so far), fields.pvd (VTK: keeps the DG field, crack openings included),
-summary.json (written atomically)."""
+written so far), fields.pvd (post/vtk.py: keeps the DG field, crack openings included,
+each cell once), summary.json (written atomically)."""
 import csv
 import json
 import os
@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dolfrag import compat
+from dolfrag.post.vtk import FieldsFile
 
 
 def dof_damage(space, links, link_damage, out):
@@ -38,7 +39,7 @@ class RunOutput:
             self._csv.writerow(columns)
             self._csv_file.flush()
         comm.barrier()
-        self._vtk = compat.vtk_file(comm, self.out / "fields.pvd") if fields else None
+        self._vtk = FieldsFile(comm, self.out / "fields.pvd") if fields else None
 
     def row(self, values):
         if self.comm.rank == 0:
@@ -65,11 +66,7 @@ class RunOutput:
 
     def failure(self, write):
         """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""
-        vtk = compat.vtk_file(self.comm, self.out / "failure.pvd")
-        try:
-            write(vtk)
-        finally:
-            vtk.close()
+        write(FieldsFile(self.comm, self.out / "failure.pvd"))
 
     def summary(self, data):
         if self.comm.rank == 0:
@@ -78,7 +75,5 @@ class RunOutput:
             os.replace(tmp, self.out / "summary.json")
 
     def close(self):
-        if self._vtk is not None:
-            self._vtk.close()
         if self.comm.rank == 0:
             self._csv_file.close()
