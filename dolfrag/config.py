@@ -248,7 +248,7 @@ class Material:
 class Interface:
     """[interface]: cohesive law of every inter-element facet.
 
-    When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the seed's C = 10 E / h).
+    When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the reference paper's C = 10 E / h).
     """
     law: str = _f("str", "elastic", choices=LAWS)                   # one of LAWS
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
@@ -271,11 +271,11 @@ class Interface:
     # shifted by the cohesion while the link holds
     mu: float | None = _f("float", 0.0, bounds=">= 0", when=_FRICTIONAL)
     # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
-    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the seed's law)
+    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the reference paper's law)
     mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=("law", "rccm", "rccm_decoupled"))
 
     def adhesion_energy(self, C_N: float) -> float:
-        """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (PHYSICS.md §1)."""
+        """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (docs/method.md)."""
         return self.w if self.w is not None else self.sigma_c**2 / C_N
 
     def stiffness(self, E: float, h: float) -> tuple[float, float]:
@@ -293,7 +293,7 @@ class Load:
     """[load]: pressure p(t) on one boundary, positive pushes into the body (the formulas:
     dolfrag/loads.py, docs/loads.md), or a uniform stretch along x.
 
-    kind "stretch" (the expanding bar, PHYSICS.md §4): the body starts unstressed with
+    kind "stretch" (the expanding bar, docs/method.md): the body starts unstressed with
     the velocity v_x = strain_rate (x - x_mid), v_y = 0 (x_mid: the middle of its x extent
     L), and the x velocity of the boundaries ``left`` and ``right`` is held at
     -/+ strain_rate L / 2 from t = 0 (imex, nonsmooth interface laws).
@@ -317,7 +317,7 @@ class Load:
     rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING)   # >= 0
     duration: float | None = _f("float", bounds="> 0", unit="s", when=_SHAPED)    # >= rise
     # friedlander decay coefficient; >= -1 keeps the maximum at t = 0 (loads.friedlander_alpha
-    # gives it from the impulse ratio i / (peak duration), PHYSICS.md §6)
+    # gives it from the impulse ratio i / (peak duration), docs/loads.md)
     alpha: float | None = _f("float", bounds=">= -1", when=("signal", "friedlander"))
     # oscillations; amplitude relative to the mean pressure (deflagration) or to the plateau
     # (detonation), <= 1 keeps p >= 0

@@ -6,7 +6,7 @@ and tags every cell with the material group ``concrete``. An imported file names
 its own boundaries and materials through physical groups. Lengths in metres.
 
 The mesh is distributed so that each rank holds every cell around the vertices it
-owns (whole vertex stars, shared/DESIGN.md §4-5): the interface step of a vertex is
+owns (whole vertex stars, docs/method.md "Parallel layout"): the interface step of a vertex is
 then solved by the vertex's owner with no communication. The owner of each cell comes
 from DOLFINx's graph partitioner, or, for tests that need to know where the partition
 boundary runs, from a geometric ``owner_rule`` given to ``build``.

@@ -1,4 +1,4 @@
-"""The `imex` step: explicit bulk, implicit interface (shared/DESIGN.md §4).
+"""The `imex` step: explicit bulk, implicit interface (docs/method.md).
 
 Central difference for the bulk with the lumped mass M, and the interface springs taken
 at the average ``(u_{n+1} + 2 u_n + u_{n-1}) / 4``. In velocity increments
