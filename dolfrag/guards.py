@@ -31,15 +31,18 @@ def extents(geometry):
     return (geometry.length, geometry.width, geometry.thickness)[:geometry.tdim]
 
 
-def cells_estimate(geometry, h):
-    """Cells gmsh makes for a rectangle or box at element size h (m); None for a file."""
-    sides = extents(geometry)
-    if sides is None:
-        return None
+def cells_in(sides, h, structured=False):
+    """Cells gmsh makes in a rectangle or box of these sides (m) at element size h (m)."""
     if len(sides) == 3:
         return CELLS_PER_H3 * math.prod(sides) / h**3
-    per_area = CELLS_PER_H2_GRID if geometry.structured else CELLS_PER_H2
-    return per_area * math.prod(sides) / h**2
+    return (CELLS_PER_H2_GRID if structured else CELLS_PER_H2) * math.prod(sides) / h**2
+
+
+def cells_estimate(geometry, h):
+    """Cells gmsh makes for a rectangle or box at element size h (m); None for a file
+    (mesh.build estimates a .geo from its bounding box once gmsh has read it)."""
+    sides = extents(geometry)
+    return None if sides is None else cells_in(sides, h, geometry.structured)
 
 
 def steps_estimate(case):

@@ -12,6 +12,7 @@ from DOLFINx's graph partitioner, or, for tests that need to know where the part
 boundary runs, from a geometric ``owner_rule`` given to ``build``.
 """
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-from dolfrag import compat
+from dolfrag import compat, guards
 from dolfrag.config import CaseError
 
 BOX_FACES = ("left", "right", "bottom", "top", "front", "back")
@@ -118,7 +119,9 @@ def _build_box(gmsh, geometry, size):
     return tdim
 
 
-def _read_file(gmsh, path, tdim, size):
+def _read_file(gmsh, path, tdim, size, max_cells):
+    """Read a .geo (meshed here, at most ``size`` m, if its bounding box holds at most about
+    ``max_cells`` cells) or a .msh (at most ``max_cells`` cells)."""
     if not path.exists():
         raise CaseError(f"geometry.file = {str(path)!r}: file not found")
     try:
@@ -126,8 +129,18 @@ def _read_file(gmsh, path, tdim, size):
     except Exception as err:
         raise CaseError(f"geometry.file = {str(path)!r}: gmsh cannot read it ({err})") from None
     if path.suffix == ".geo":
+        box = gmsh.model.getBoundingBox(-1, -1)
+        cells = guards.cells_in([box[3 + k] - box[k] for k in range(tdim)], size)
+        if cells > max_cells:
+            raise CaseError(f"mesh.size = {size!r}: about {cells:.3g} cells in the bounding box of geometry.file, "
+                            f"above run.max_cells = {max_cells:g}; raise mesh.size or run.max_cells")
         gmsh.option.setNumber("Mesh.CharacteristicLengthMax", size)
         gmsh.model.mesh.generate(tdim)
+    else:
+        cells = sum(len(tags) for tags in gmsh.model.mesh.getElements(tdim)[1])
+        if cells > max_cells:
+            raise CaseError(f"geometry.file = {str(path)!r}: {cells} cells, above run.max_cells = {max_cells:g}; "
+                            "raise run.max_cells")
     if not gmsh.model.getPhysicalGroups(tdim):
         raise CaseError(f"geometry.file = {str(path)!r}: no physical group of dimension {tdim} "
                         "(the material groups); add one per material")
@@ -152,13 +165,14 @@ def _geometric_owners(owner_rule, x, gdim):
     return owners
 
 
-def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
+def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.inf):
     """Mesh ``geometry`` (a config.Geometry) with element size ``size`` (m) and distribute it.
 
     owner_rule: None (DOLFINx's graph partitioner decides which rank owns each cell), or a
     function of the cell centroids (n, gdim) (m) returning each cell's owner rank (n,): a
     partition boundary where a test wants it (e.g. ``lambda c: c[:, 0] > L / 2`` on 2
-    ranks); the stars around it are still completed by star_partitioner.
+    ranks); the stars around it are still completed by star_partitioner. max_cells: the
+    limit on an imported file's cells (guards.py checks a rectangle or box before this).
     gmsh runs on rank 0 only; collective.
     """
     header, error = None, None
@@ -167,7 +181,7 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
         try:
             gmsh.model.add("dolfrag")
             if geometry.kind == "file":
-                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size)
+                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size, max_cells)
             else:
                 tdim = _build_box(gmsh, geometry, size)
             header = (tdim, _physical_names(gmsh, tdim - 1), _physical_names(gmsh, tdim))

@@ -69,7 +69,7 @@ def setup(case, comm):
 
 def _setup(case, comm):
     """setup's tuple, plus the case's Stretch (None for a pressure load)."""
-    domain = mesh.build(case.geometry, case.mesh.size, comm)
+    domain = mesh.build(case.geometry, case.mesh.size, comm, max_cells=case.run.max_cells)
     named = ([("load.boundary", case.load.boundary)] if case.load.kind == "pressure" else []) + [
         (f"supports.{kind}", name) for kind in ("rollers", "clamped", "simple")
         for name in getattr(case.supports, kind)]
