@@ -1,11 +1,14 @@
 """Safe output folders (--out, --overwrite) and the size and run-length guards: refused
 before meshing, in a fraction of a second, with one line."""
+import os
+import subprocess
+import sys
 import time
 
 import pytest
 
 import dolfrag.mesh
-from conftest import dolfrag_cli
+from conftest import ROOT, dolfrag_cli
 from dolfrag import guards
 from dolfrag.config import CaseError, load_case
 from dolfrag.runner import run
@@ -105,3 +108,20 @@ def test_a_thin_body_gets_one_warning_line(override, axis):
     warning = guards.check(case)
     assert warning is not None and axis in warning and "\n" not in warning
     assert guards.check(load_case("sound-bar", ["mesh.size=0.01"])) is None  # 4 across the width
+
+
+def test_on_2_ranks_a_non_empty_folder_is_refused_and_overwrite_empties_it(tmp_path):
+    """outdir.prepare is collective: every rank refuses, or every rank runs after rank 0
+    emptied the folder (mpirun -q: without its own banner about a non-zero exit)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "stale.csv").write_text("old")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OPENBLAS_NUM_THREADS="1")
+    command = ["mpirun", "-q", "-n", "2", sys.executable, "-m", "dolfrag.cli", "run", "sound-bar", "--out", str(out),
+               *SMALL]
+    refused = subprocess.run(command, capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    one_line_exit_2(refused, "--out")
+    assert [p.name for p in out.iterdir()] == ["stale.csv"]
+    ran = subprocess.run(command + ["--overwrite"], capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    assert ran.returncode == 0, ran.stderr
+    assert not (out / "stale.csv").exists() and '"ranks": 2' in (out / "summary.json").read_text()
