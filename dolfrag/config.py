@@ -551,8 +551,8 @@ def _check_groups(case: Case) -> None:
     groups are checked once it is read, bulk.material_fields)."""
     for name in case.materials:
         if case.geometry.kind != "file" and name != BUILT_GROUP:
-            raise CaseError(f"materials.{name}: not a material group of the mesh; allowed: "
-                            f"{BUILT_GROUP!r} (the {case.geometry.kind}'s only group; more need geometry.kind = 'file')")
+            raise CaseError(f"materials.{name}: not a material group of the mesh; allowed: {BUILT_GROUP!r} "
+                            f"(the {case.geometry.kind}'s only group; more need geometry.kind = 'file')")
 
 
 def _check_rebar(bars: Rebar, geometry: Geometry) -> None:

@@ -4,8 +4,9 @@ A positive pressure pushes into the body: the traction on the loaded boundary is
 -p(t) n with n the outward normal.
 
 Each signal is a pure function of its parameters (SI units) returning a vectorised p(t),
-t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md). The spatial profile is uniform on the loaded boundary, optionally times
-``factor`` in a box (a local over-pressure): one load vector times one signal.
+t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md).
+The spatial profile is uniform on the loaded boundary, optionally times ``factor`` in a box
+(a local over-pressure): one load vector times one signal.
 """
 from functools import reduce
 

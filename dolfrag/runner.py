@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, analytic, bulk, compat, guards, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag import guards
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump

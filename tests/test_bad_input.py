@@ -76,8 +76,8 @@ BAD = {
     "--out not empty": ("sound-bar", [], ["--out", "{full}"], "--out"),
     "--out not writable": ("sound-bar", [], ["--out", "/proc/sys/dolfrag-out"], "--out"),
     "oversized mesh of a .geo": ("sound-bar", FILE + ["mesh.size=1e-6"], [], "run.max_cells"),
-    "a .msh above the cell limit": ("sound-bar", [s.replace("{geo}", "{msh}") for s in FILE] + ["run.max_cells=0.5"], [],
-                                    "run.max_cells"),
+    "a .msh above the cell limit": ("sound-bar", [s.replace("{geo}", "{msh}") for s in FILE]
+                                    + ["run.max_cells=0.5"], [], "run.max_cells"),
     "group of a generated mesh": ("sound-bar", STEEL, [], "materials.steel"),
     "group not in the mesh file": ("sound-bar", FILE + STEEL + ["mesh.size=0.01"] + SHORT, [], "materials.steel"),
     "bar axis normal to its face": ("sound-bar", BARS + ["rebar.faces=['left']"], [], "rebar.direction"),
@@ -101,7 +101,8 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(name, tmp_path, caps
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "mine.txt").write_text("x")
     monkeypatch.chdir(tmp_path)  # relative paths (absent.msh) resolve here
-    where = {"geo": tmp_path / "bar.geo", "msh": tmp_path / "tri.msh", "file": tmp_path / "file", "full": tmp_path / "full"}
+    where = {"geo": tmp_path / "bar.geo", "msh": tmp_path / "tri.msh", "file": tmp_path / "file",
+             "full": tmp_path / "full"}
     args = [a.format(**where) for a in extra] or ["--out", str(tmp_path / "out")]
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     status = cli.main(["run", case, *args, "--quiet", *(x for s in sets for x in ("--set", s.format(**where)))])
@@ -116,7 +117,8 @@ def test_more_ranks_than_cells_exits_2_on_every_rank(tmp_path):
     """A one-triangle mesh on two ranks: one rank would own nothing (mpirun -q: without
     its own banner about a non-zero exit)."""
     (tmp_path / "tri.msh").write_text(TRIANGLE)
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OPENBLAS_NUM_THREADS="1")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
     sets = [s.format(geo=tmp_path / "tri.msh") for s in FILE] + ["mesh.size=0.01"] + SHORT
     result = subprocess.run(["mpirun", "-q", "-n", "2", sys.executable, "-m", "dolfrag.cli", "run", "sound-bar",
                              "--out", str(tmp_path / "out"), *(x for s in sets for x in ("--set", s))],
