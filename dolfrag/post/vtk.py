@@ -8,6 +8,7 @@ The .pvd index is rewritten after each snapshot (write then rename): it lists co
 snapshots only, whenever the run stops.
 """
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ import numpy as np
 from dolfrag import compat
 
 CELL_TYPES = {2: 5, 3: 10}  # VTK_TRIANGLE, VTK_TETRA
+BYTE_ORDER = "LittleEndian" if sys.byteorder == "little" else "BigEndian"  # of the raw arrays written
 
 
 def _owned_cell_values(f):
@@ -62,7 +64,7 @@ def write_piece(path, functions):
                     for name, values, kind in (("connectivity", connectivity, "Int64"),
                                                ("offsets", offsets, "Int64"), ("types", types, "UInt8")))
     xml = ('<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" '
-           'byte_order="LittleEndian" header_type="UInt64">\n<UnstructuredGrid>\n'
+           f'byte_order="{BYTE_ORDER}" header_type="UInt64">\n<UnstructuredGrid>\n'
            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{n_cells}">\n'
            f'<PointData>{point_data}</PointData>\n{points_xml}\n<Cells>{cells}</Cells>\n'
            '</Piece>\n</UnstructuredGrid>\n<AppendedData encoding="raw">\n_')
@@ -99,7 +101,7 @@ class FieldsFile:
         pieces = "".join(f'<Piece Source="{piece.format(r)}"/>\n' for r in range(self.comm.size))
         _replace(self.path.with_name(f"{stem}{k:06d}.pvtu"),
                  '<?xml version="1.0"?>\n<VTKFile type="PUnstructuredGrid" version="1.0" '
-                 'byte_order="LittleEndian" header_type="UInt64">\n<PUnstructuredGrid GhostLevel="0">\n'
+                 f'byte_order="{BYTE_ORDER}" header_type="UInt64">\n<PUnstructuredGrid GhostLevel="0">\n'
                  f'<PPointData>{arrays}</PPointData>\n'
                  '<PPoints><PDataArray type="Float64" NumberOfComponents="3"/></PPoints>\n'
                  f'{pieces}</PUnstructuredGrid>\n</VTKFile>\n')
