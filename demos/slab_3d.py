@@ -8,7 +8,8 @@
 
 # # A clamped slab in 3D: slow bending against the thin-plate closed form
 #
-# The reinforced concrete wall of the seed is a slab, 1 m × 1 m × 0.10 m, clamped on its
+# The reinforced concrete wall of the reference paper (*Study and simulation of fragmentation
+# phenomena of concrete structures under stuffy explosion*) is a slab, 1 m × 1 m × 0.10 m, clamped on its
 # four edges (the built-in cases `slab-3d-scabbing` and `slab-3d-bending`, docs/slab.md).
 # Before it cracks, a pressure that rises slowly against the slab's first period bends it
 # statically, and a thin clamped square plate of side $a$ and thickness $t$ deflects at its

@@ -6,7 +6,7 @@ benchmarks all go through it.
 """
 try:
     # VTK must be loaded before DOLFINx: the other order aborts the process with
-    # std::bad_alloc when a scalar bar is drawn (shared/DESIGN.md §9).
+    # std::bad_alloc when a scalar bar is drawn (measured with DOLFINx 0.5.2 and VTK 9).
     import pyvista  # noqa: F401
 except ImportError:
     pass

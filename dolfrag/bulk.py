@@ -13,6 +13,7 @@ import ufl
 from mpi4py import MPI
 
 from dolfrag import compat
+from dolfrag.config import CaseError
 
 
 @dataclass
@@ -40,6 +41,9 @@ def material_fields(space, domain, default, groups):
     tags = np.full(n_cells, -1, dtype=np.int32)
     tags[domain.cell_tags.indices] = domain.cell_tags.values
     for name, mat in groups.items():
+        if name not in domain.materials:
+            raise CaseError(f"materials.{name}: not a material group of the mesh; groups: "
+                            f"{', '.join(sorted(domain.materials)) or 'none'}")
         cells = tags == domain.materials[name]
         E[cells], nu[cells], dens[cells] = mat.E, mat.nu, mat.rho
     mu_c = E / (2 * (1 + nu))

@@ -1,6 +1,6 @@
 """The `dolfrag` command: a thin layer over dolfrag.run.
 
-    dolfrag run CASE [--out DIR] [--set section.key=value ...] [--quiet]
+    dolfrag run CASE [--out DIR] [--overwrite] [--set section.key=value ...] [--quiet]
     dolfrag run --resume DIR [--quiet]
     dolfrag cases [NAME]
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
@@ -10,7 +10,9 @@ results/<case name>/load.png) and prints the PNG path, then the signal's peak (P
 and its time (s), impulse (Pa s) and duration (s) as `name = value` lines.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
-and one line naming the key, the value and what is allowed.
+and one line naming the key, the value and what is allowed. `run` refuses an --out
+folder that is not empty (a run never mixes its files with another's) unless
+--overwrite, which empties it first.
 
 `run` checkpoints every output.checkpoint_every seconds of wall time and at the end;
 SIGINT or SIGTERM stop it at the end of the current step (checkpoint, summary.json with
@@ -24,6 +26,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from dolfrag import guards, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.run.driver import run
 from dolfrag.run.signals import EXIT_CODES
@@ -36,7 +39,8 @@ def _parser():
     run = sub.add_parser("run", help="run a case")
     run.add_argument("case", nargs="?", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
     run.add_argument("--resume", metavar="DIR", help="continue the run whose checkpoint is in DIR (same rank count)")
-    run.add_argument("--out", help="output directory (default: results/<case name>)")
+    run.add_argument("--out", help="output folder, new or empty (default: results/<case name>)")
+    run.add_argument("--overwrite", action="store_true", help="empty a non-empty --out folder first")
     run.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                      help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable); "
                           "no value (--set time.dt=) removes it")
@@ -76,8 +80,8 @@ def main(argv=None):
     comm = MPI.COMM_WORLD
     if args.command == "run" and (args.case is None) == (args.resume is None):
         parser.error("run: give a CASE or --resume DIR (not both)")
-    if args.command == "run" and args.resume and (args.set or args.out):
-        parser.error("run --resume DIR: the case and its folder are the checkpoint's (no --set, no --out)")
+    if args.command == "run" and args.resume and (args.set or args.out or args.overwrite):
+        parser.error("run --resume DIR: the case and its folder are the checkpoint's (no --set, --out, --overwrite)")
     try:
         if args.command == "run" and args.resume:
             summary = run(None, args.resume, quiet=args.quiet, comm=comm, resume=True)
@@ -90,7 +94,10 @@ def main(argv=None):
         if args.command == "loads":
             _plot_load(case, args.out, comm)
             return 0
-        summary = run(case, args.out or f"results/{case.name}", quiet=args.quiet, comm=comm)
+        out = args.out or f"results/{case.name}"
+        guards.check(case)  # refuse before emptying the folder
+        outdir.prepare(out, args.overwrite, comm)
+        summary = run(case, out, quiet=args.quiet, comm=comm)
         return _report(summary, comm, args.quiet)
     except CaseError as err:
         if comm.rank == 0:

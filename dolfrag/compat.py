@@ -10,7 +10,6 @@ import dolfinx
 import dolfinx.cpp
 import dolfinx.fem.petsc
 import dolfinx.geometry
-import dolfinx.io
 from dolfinx.io import gmshio
 
 GhostMode = dolfinx.mesh.GhostMode
@@ -166,10 +165,6 @@ def scatter_forward(u):
 
 def scatter_reverse_add(u):
     u.x.scatter_reverse(dolfinx.la.ScatterMode.add)
-
-
-def vtk_file(comm, path):
-    return dolfinx.io.VTKFile(comm, str(path), "w")
 
 
 def facet_measure(msh, facet_tags):

@@ -250,7 +250,7 @@ class Material:
 class Interface:
     """[interface]: cohesive law of every inter-element facet.
 
-    When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the seed's C = 10 E / h).
+    When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the reference paper's C = 10 E / h).
     """
     law: str = _f("str", "elastic", choices=LAWS)                   # one of LAWS
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
@@ -273,11 +273,11 @@ class Interface:
     # shifted by the cohesion while the link holds
     mu: float | None = _f("float", 0.0, bounds=">= 0", when=_FRICTIONAL)
     # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
-    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the seed's law)
+    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the reference paper's law)
     mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=("law", "rccm", "rccm_decoupled"))
 
     def adhesion_energy(self, C_N: float) -> float:
-        """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (PHYSICS.md §1)."""
+        """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (docs/method.md)."""
         return self.w if self.w is not None else self.sigma_c**2 / C_N
 
     def stiffness(self, E: float, h: float) -> tuple[float, float]:
@@ -295,7 +295,7 @@ class Load:
     """[load]: pressure p(t) on one boundary, positive pushes into the body (the formulas:
     dolfrag/loads.py, docs/loads.md), or a uniform stretch along x.
 
-    kind "stretch" (the expanding bar, PHYSICS.md §4): the body starts unstressed with
+    kind "stretch" (the expanding bar, docs/method.md): the body starts unstressed with
     the velocity v_x = strain_rate (x - x_mid), v_y = 0 (x_mid: the middle of its x extent
     L), and the x velocity of the boundaries ``left`` and ``right`` is held at
     -/+ strain_rate L / 2 from t = 0 (imex, nonsmooth interface laws).
@@ -319,7 +319,7 @@ class Load:
     rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING)   # >= 0
     duration: float | None = _f("float", bounds="> 0", unit="s", when=_SHAPED)    # >= rise
     # friedlander decay coefficient; >= -1 keeps the maximum at t = 0 (loads.friedlander_alpha
-    # gives it from the impulse ratio i / (peak duration), PHYSICS.md §6)
+    # gives it from the impulse ratio i / (peak duration), docs/loads.md)
     alpha: float | None = _f("float", bounds=">= -1", when=("signal", "friedlander"))
     # oscillations; amplitude relative to the mean pressure (deflagration) or to the plateau
     # (detonation), <= 1 keeps p >= 0
@@ -399,6 +399,14 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Run:
+    """[run]: limits checked before meshing (dolfrag/guards.py), sized for a 2-core, 24 GB
+    machine; raise them for a bigger one."""
+    max_cells: float = _f("float", 2.0e6, bounds="> 0")     # estimated cells, > 0
+    max_steps: float = _f("float", 1.0e7, bounds="> 0")     # estimated time steps, > 0
+
+
+@dataclass(frozen=True)
 class Case:
     name: str
     description: str
@@ -412,6 +420,7 @@ class Case:
     rebar: Rebar
     time: Time
     output: Output
+    run: Run
     source: Path | None = None       # the case file this came from
 
     def to_dict(self) -> dict:
@@ -420,7 +429,7 @@ class Case:
 
 
 _SECTIONS = {"geometry": Geometry, "mesh": Mesh, "material": Material, "interface": Interface,
-             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output}
+             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output, "run": Run}
 _TOP_KEYS = ("name", "description", *_SECTIONS, "materials")
 _PATH_KEYS = {f"{s}.{f.name}" for s, cls in _SECTIONS.items() for f in fields(cls)
               if "spec" in f.metadata and f.metadata["spec"].kind == "path"}
@@ -516,6 +525,12 @@ def _check(case: Case) -> None:
             if kind < other and both:
                 raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
                                 f"supports.{other} (a boundary may be in one list only)")
+    _check_rebar(case.rebar, case.geometry)
+    _check_groups(case)
+    late = [t for t in case.output.fragments_at if t > case.time.end]
+    if late:
+        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
+                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
     bars = case.rebar
     if bars.faces:
         if case.geometry.kind == "file":
@@ -530,6 +545,47 @@ def _check(case: Case) -> None:
     if load.boundary in sup.clamped:
         raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
                         "load.boundary (the loaded boundary may not be clamped)")
+
+
+BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)
+
+
+def _check_groups(case: Case) -> None:
+    """[materials.NAME] of a generated geometry: NAME is its one group (an imported mesh's
+    groups are checked once it is read, bulk.material_fields)."""
+    for name in case.materials:
+        if case.geometry.kind != "file" and name != BUILT_GROUP:
+            raise CaseError(f"materials.{name}: not a material group of the mesh; allowed: {BUILT_GROUP!r} "
+                            f"(the {case.geometry.kind}'s only group; more need geometry.kind = 'file')")
+
+
+def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
+    """[rebar] keys among themselves and against the geometry's dimension (the layers
+    themselves: rebar_layout.layer_polylines)."""
+    optional = ("cover", "diameter", "spacing", "f_y", "eps_u")
+    if not bars.faces:
+        for key in optional:
+            if getattr(bars, key) is not None:
+                raise CaseError(f"rebar.{key} = {getattr(bars, key)!r}: only allowed when rebar.faces is given "
+                                "(a list of faces to lay bars along)")
+        return
+    dim = geometry.tdim
+    if dim == 2 and bars.direction not in ("x", "y"):
+        raise CaseError(f"rebar.direction = {bars.direction!r}: in 2D must be 'x' or 'y' (the bar axis)")
+    for face in (f for f in bars.faces if f in BOX_BOUNDARIES):
+        normal = "xyz"[BOX_BOUNDARIES.index(face) // 2]
+        if not set(bars.direction) - {normal}:
+            raise CaseError(f"rebar.direction = {bars.direction!r}: no axis along face {face!r} of rebar.faces "
+                            f"(its normal is {normal}); allowed: axes other than {normal!r}")
+    if bars.diameter is not None and bars.spacing is not None and bars.diameter >= bars.spacing:
+        raise CaseError(f"rebar.diameter = {bars.diameter!r}: must be < rebar.spacing = {bars.spacing!r} m "
+                        "(neighbouring bars would overlap)")
+    if bars.diameter is not None and bars.cover is not None and bars.diameter / 2 > bars.cover:
+        raise CaseError(f"rebar.diameter = {bars.diameter!r}: must be <= 2 x rebar.cover = {2 * bars.cover:g} m "
+                        "(the cover is measured face to bar axis: a thicker bar sticks out of the body)")
+    if bars.eps_u is not None and bars.f_y is not None and bars.eps_u <= bars.f_y / bars.E:
+        raise CaseError(f"rebar.eps_u = {bars.eps_u!r}: must be > the yield strain rebar.f_y / rebar.E = "
+                        f"{bars.f_y / bars.E:.3g} (the bar yields before it ruptures)")
 
 
 STRETCHED = ("left", "right")  # the boundaries a stretch pulls apart along x

@@ -1,6 +1,6 @@
 """The ghost layer of a star partition: what each part owns, ghosts and exchanges per step.
 
-Under dolfrag's parallel layout (mesh.star_partitioner, shared/DESIGN.md §5) a part holds
+Under dolfrag's parallel layout (mesh.star_partitioner, docs/method.md "Parallel layout") a part holds
 its own cells and every cell sharing a vertex with one of them, so its ghost cells are the
 cells it does not own that share a vertex with a cell it owns. DG-P1 dofs live in cells,
 so a ghost cell brings its (tdim + 1) vertex copies, gdim components each, as ghost

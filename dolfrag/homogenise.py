@@ -2,8 +2,8 @@
 mesh that runs.
 
 The interface springs add compliance, and on an unstructured mesh more than the 1D
-series estimate says (shared/DESIGN.md §9: -8 % wave speed measured against -4.7 %
-predicted at C = 10 E / h). Tests that predict arrival times use this modulus; the slab's
+series estimate says (-8 % wave speed measured on the sound bar against -4.7 %
+predicted at C = 10 E / h, docs/validation.md). Tests that predict arrival times use this modulus; the slab's
 slow-ramp check uses the static centre deflection (docs/slab.md).
 """
 import numpy as np

@@ -4,9 +4,9 @@ A positive pressure pushes into the body: the traction on the loaded boundary is
 -p(t) n with n the outward normal.
 
 Each signal is a pure function of its parameters (SI units) returning a vectorised p(t),
-t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md,
-PHYSICS.md §6). The spatial profile is uniform on the loaded boundary, optionally times
-``factor`` in a box (a local over-pressure): one load vector times one signal.
+t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md).
+The spatial profile is uniform on the loaded boundary, optionally times ``factor`` in a box
+(a local over-pressure): one load vector times one signal.
 """
 from functools import reduce
 
@@ -41,7 +41,7 @@ def friedlander(peak, duration, alpha):
         p(t) = p_s (1 - t/t_d) exp(-alpha t/t_d)   for 0 <= t <= t_d, else 0
 
     p_s = ``peak`` (Pa) at t = 0, t_d = ``duration`` (s), alpha (-) the decay coefficient,
-    >= -1 so that the maximum stays at t = 0 (PHYSICS.md §6; alpha from the impulse ratio:
+    >= -1 so that the maximum stays at t = 0 (alpha from the impulse ratio:
     ``friedlander_alpha``). Impulse p_s t_d k(alpha) (``friedlander_impulse_ratio``)."""
     def p(t):
         t, on = _window(t, duration)
@@ -61,7 +61,7 @@ def friedlander_impulse_ratio(alpha):
 
 def friedlander_alpha(impulse_ratio):
     """alpha (-) of the Friedlander wave with impulse i = k p_s t_d, k = ``impulse_ratio``
-    in (0, e - 2]: the root of ``friedlander_impulse_ratio`` (PHYSICS.md §6 table;
+    in (0, e - 2]: the root of ``friedlander_impulse_ratio`` (NAVFAC DM-2.08 eq. 13a table;
     k = e - 2 is alpha = -1, the largest impulse with the peak still at t = 0)."""
     if not 0.0 < impulse_ratio <= np.e - 2.0:
         raise ValueError(f"impulse_ratio = {impulse_ratio!r}: must be in (0, e - 2 = 0.718]")
@@ -80,7 +80,7 @@ def deflagration(peak, rise, duration, frequency, amplitude):
     P = ``peak`` (Pa), the peak of the mean pressure s, reached at t_r = ``rise`` (s) > 0;
     T = ``duration`` (s) > t_r; f = ``frequency`` (Hz) and a = ``amplitude`` (-, in [0, 1])
     the oscillation, relative to the mean pressure, so p >= 0 and p <= P (1 + a).
-    The rise grows as t^3 at first (a spherical flame's burnt volume, PHYSICS.md §6) and s
+    The rise grows as t^3 at first (a spherical flame's burnt volume, docs/loads.md) and s
     has zero slope at t_r and T, so only the oscillation has time scales shorter than t_r.
     Impulse of s: P (2 t_r / 5 + (T - t_r) / 2)."""
     def p(t):

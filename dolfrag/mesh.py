@@ -6,12 +6,13 @@ and tags every cell with the material group ``concrete``. An imported file names
 its own boundaries and materials through physical groups. Lengths in metres.
 
 The mesh is distributed so that each rank holds every cell around the vertices it
-owns (whole vertex stars, shared/DESIGN.md §4-5): the interface step of a vertex is
+owns (whole vertex stars, docs/method.md "Parallel layout"): the interface step of a vertex is
 then solved by the vertex's owner with no communication. The owner of each cell comes
 from DOLFINx's graph partitioner, or, for tests that need to know where the partition
 boundary runs, from a geometric ``owner_rule`` given to ``build``.
 """
 import functools
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-from dolfrag import compat
+from dolfrag import compat, guards
 from dolfrag.config import CaseError
 
 BOX_FACES = ("left", "right", "bottom", "top", "front", "back")
@@ -118,7 +119,9 @@ def _build_box(gmsh, geometry, size):
     return tdim
 
 
-def _read_file(gmsh, path, tdim, size):
+def _read_file(gmsh, path, tdim, size, max_cells):
+    """Read a .geo (meshed here, at most ``size`` m, if its bounding box holds at most about
+    ``max_cells`` cells) or a .msh (at most ``max_cells`` cells)."""
     if not path.exists():
         raise CaseError(f"geometry.file = {str(path)!r}: file not found")
     try:
@@ -126,8 +129,18 @@ def _read_file(gmsh, path, tdim, size):
     except Exception as err:
         raise CaseError(f"geometry.file = {str(path)!r}: gmsh cannot read it ({err})") from None
     if path.suffix == ".geo":
+        box = gmsh.model.getBoundingBox(-1, -1)
+        cells = guards.cells_in([box[3 + k] - box[k] for k in range(tdim)], size)
+        if cells > max_cells:
+            raise CaseError(f"mesh.size = {size!r}: about {cells:.3g} cells in the bounding box of geometry.file, "
+                            f"above run.max_cells = {max_cells:g}; raise mesh.size or run.max_cells")
         gmsh.option.setNumber("Mesh.CharacteristicLengthMax", size)
         gmsh.model.mesh.generate(tdim)
+    else:
+        cells = sum(len(tags) for tags in gmsh.model.mesh.getElements(tdim)[1])
+        if cells > max_cells:
+            raise CaseError(f"geometry.file = {str(path)!r}: {cells} cells, above run.max_cells = {max_cells:g}; "
+                            "raise run.max_cells")
     if not gmsh.model.getPhysicalGroups(tdim):
         raise CaseError(f"geometry.file = {str(path)!r}: no physical group of dimension {tdim} "
                         "(the material groups); add one per material")
@@ -152,13 +165,14 @@ def _geometric_owners(owner_rule, x, gdim):
     return owners
 
 
-def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
+def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.inf):
     """Mesh ``geometry`` (a config.Geometry) with element size ``size`` (m) and distribute it.
 
     owner_rule: None (DOLFINx's graph partitioner decides which rank owns each cell), or a
     function of the cell centroids (n, gdim) (m) returning each cell's owner rank (n,): a
     partition boundary where a test wants it (e.g. ``lambda c: c[:, 0] > L / 2`` on 2
-    ranks); the stars around it are still completed by star_partitioner.
+    ranks); the stars around it are still completed by star_partitioner. max_cells: the
+    limit on an imported file's cells (guards.py checks a rectangle or box before this).
     gmsh runs on rank 0 only; collective.
     """
     header, error = None, None
@@ -167,7 +181,7 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
         try:
             gmsh.model.add("dolfrag")
             if geometry.kind == "file":
-                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size)
+                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size, max_cells)
             else:
                 tdim = _build_box(gmsh, geometry, size)
             header = (tdim, _physical_names(gmsh, tdim - 1), _physical_names(gmsh, tdim))
@@ -187,6 +201,10 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None):
     finally:
         if comm.rank == 0:
             gmsh.finalize()
+    cells = msh.topology.index_map(tdim)
+    if comm.allreduce(cells.size_local, op=MPI.MIN) == 0:
+        raise CaseError(f"mesh.size = {size!r}: {cells.size_global} cells, too few for {comm.size} ranks "
+                        "(every rank must own a cell); run on fewer ranks or lower mesh.size")
     for dim in (tdim - 1, 0):
         msh.topology.create_connectivity(dim, tdim)
         msh.topology.create_connectivity(tdim, dim)

@@ -73,7 +73,7 @@ class Problem:
         """Mesh and operators of ``case`` (config.Case) on ``comm``; owner_rule: which rank
         owns each cell, as in mesh.build (default: the graph partitioner's choice). Collective.
         Raises CaseError for a boundary name the mesh lacks."""
-        domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule)
+        domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule, max_cells=case.run.max_cells)
         _check_boundaries(case, domain)
         space = spaces.create(domain)
         bulk_ops = bulk.assemble(space, domain, case)

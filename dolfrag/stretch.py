@@ -1,4 +1,4 @@
-"""The uniform stretch of an expanding bar (config.Load kind "stretch", PHYSICS.md §4).
+"""The uniform stretch of an expanding bar (config.Load kind "stretch", docs/method.md "Expanding bar").
 
 The body starts unstressed, moving with v_x = eps_dot (x - x_mid), v_y = 0, and the x
 velocity of the boundaries ``left`` and ``right`` is held at -/+ eps_dot L / 2 from t = 0

@@ -22,3 +22,5 @@ Physical Surface("concrete") = {1};
 Physical Surface("steel") = {2};
 Physical Curve("left") = {6};
 Physical Curve("right") = {3};
+Physical Curve("bottom") = {1, 2};
+Physical Curve("top") = {4, 5};

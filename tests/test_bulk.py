@@ -94,7 +94,7 @@ def test_two_materials_from_an_imported_geo_file():
     geometry = SimpleNamespace(kind="file", tdim=2, file=str(geo))
     domain = mesh.build(geometry, 0.01, MPI.COMM_SELF)
     assert set(domain.materials) == {"concrete", "steel"}
-    assert set(domain.boundaries) == {"left", "right"}
+    assert set(domain.boundaries) == {"left", "right", "bottom", "top"}
     steel = SimpleNamespace(E=200e9, nu=0.3, rho=7850.0)
     _, space, ops = build(None, None, groups={"steel": steel}, domain=domain)
     total = ops.m.x.array[::2].sum()

@@ -89,11 +89,12 @@ def test_valid_rectangle_values_and_defaults(tmp_path):
 def test_box_materials_and_rise_default(tmp_path):
     case = load_case(write_case(tmp_path, {
         "geometry.kind": "box", "geometry.thickness": 0.2, "load.rise": DEL,
-        "material.hypothesis": "plane_stress", "materials.steel": {"E": 2e11, "nu": 0.3, "rho": 7800},
+        "material.hypothesis": "plane_stress", "materials.concrete": {"E": 2e11, "nu": 0.3, "rho": 7800},
         "supports.clamped": ["back"]}))
     assert case.geometry.tdim == 3 and "front" in case.geometry.boundaries
     assert case.load.rise == 0.0
-    assert case.materials["steel"].E == 2e11 and case.materials["steel"].hypothesis == "plane_stress"
+    # a box's one material group is "concrete" (mesh.py)
+    assert case.materials["concrete"].E == 2e11 and case.materials["concrete"].hypothesis == "plane_stress"
 
 
 def test_stretch_load_needs_no_boundary_and_keeps_no_pressure_keys(tmp_path):

@@ -1,4 +1,4 @@
-"""The expanding bar (case expanding-bar, load.kind = "stretch", PHYSICS.md §4): initial
+"""The expanding bar (case expanding-bar, load.kind = "stretch", docs/method.md "Expanding bar"): initial
 velocity and held ends, energy balance with the ends' work, dissipation against G_c, rank
 independence. The fragment size is not tested against the 1D theories: on these meshes the
 count is far below them and not monotone in the rate (docs/performance.md, peer section)."""

@@ -1,5 +1,5 @@
 """Interface laws in 0D: closed-form peaks and works, irreversibility, consistent tangents,
-and the Alart-Curnier projections (PHYSICS.md §1-2). No mesh, no MPI."""
+and the Alart-Curnier projections (docs/method.md, "Interface laws"). No mesh, no MPI."""
 import numpy as np
 import pytest
 
@@ -7,9 +7,9 @@ from dolfrag.interface import contact, laws
 
 EPS = np.finfo(float).eps
 SIGMA_C = 4e6          # Pa
-C_N = 7e13             # Pa/m, 10 E / h with E = 35 GPa, h = 5 mm (PHYSICS.md §1)
+C_N = 7e13             # Pa/m, 10 E / h with E = 35 GPa, h = 5 mm
 C_T = 3e13             # Pa/m, != C_N so that a swapped stiffness shows
-W = SIGMA_C**2 / C_N   # J/m^2, the seed's coupling
+W = SIGMA_C**2 / C_N   # J/m^2, the reference paper's coupling
 U0 = np.sqrt(W / C_N)  # m, opening at the RCCM peak
 G_C = 100.0            # J/m^2
 
@@ -118,7 +118,7 @@ def viscous_peak_and_work(kappa, du):
 
 
 def test_rccm_viscous_peak_and_work_follow_the_kappa_table():
-    """PHYSICS.md §1: kappa = b u' sqrt(C_N) / w^1.5 -> (peak ratio, work ratio)."""
+    """docs/method.md, "Interface laws": kappa = b u' sqrt(C_N) / w^1.5 -> (peak ratio, work ratio)."""
     kappa = np.array([0.0, 0.1, 1.0, 10.0])
     table_peak = np.array([1.0, 1.01, 1.11, 1.55])
     table_work = np.array([1.0, 1.07, 1.51, 3.7])
@@ -526,5 +526,5 @@ def test_mohr_coulomb_shear_needs_the_shear_traction_above_mu_i_times_the_pressu
     beta = laws.rccm(np.zeros(2), laws.mohr_coulomb_shear(shear, pressed, np.ones(2), C, mu_i),
                      np.ones(2), C, C, w)[-1]
     assert beta[0] == 1.0 and beta[1] < 1.0
-    # mu_i = 0 is the seed's law: g_T unchanged to round-off
+    # mu_i = 0 is the reference paper's law: g_T unchanged to round-off
     assert laws.mohr_coulomb_shear(g_T, p, beta_n**2, C, 0.0) == pytest.approx(g_T, rel=1e-15)

@@ -1,4 +1,4 @@
-"""Single-interface patch tests driven by imposed displacement (issue 3): two triangles
+"""Single-interface patch tests driven by imposed displacement: two triangles
 share one facet (two links); cell A is held, cell B is moved rigidly, so the bulk carries
 no stress and the reaction on B is the interface traction times the facet length.
 

@@ -12,9 +12,9 @@ from dolfrag.config import CaseError, builtin_case_text, load_case
 from dolfrag.solver.theta import accuracy_time_step
 
 ATM = 101325.0  # Pa
-# stoichiometric H2-air at a wall (PHYSICS.md §6): P_CJ, reflected spike, P_AICC
+# stoichiometric H2-air at a wall (docs/loads.md): P_CJ, reflected spike, P_AICC
 P_CJ, P_REFL, P_AICC = 15.5 * ATM, 37.5 * ATM, 7.96 * ATM
-# a seed-like deflagration: about 0.1 s, oscillation in the seed's 45-78 Hz band
+# a deflagration like the reference paper's: about 0.1 s, oscillation in its measured 45-78 Hz band
 DEFLAGRATION = dict(peak=2e5, rise=0.05, duration=0.1, frequency=60.0, amplitude=0.2)
 # detonation: 180 Hz = c_AICC / 2L for a 3 m room (c_AICC ~ 1090 m/s); local peak at 8 ms
 DETONATION = dict(peak=P_REFL, plateau=P_AICC, decay=0.5e-3, duration=20e-3, frequency=180.0,
@@ -101,7 +101,7 @@ def test_deflagration_oscillation_has_the_given_relative_amplitude_and_keeps_p_i
     assert np.max(values[inner] / mean[inner] - 1) == pytest.approx(a, rel=1e-7)
 
 
-@pytest.mark.parametrize("frequency", [45.0, 60.0, 78.0])  # the seed's measured band
+@pytest.mark.parametrize("frequency", [45.0, 60.0, 78.0])  # the reference paper's measured band
 def test_deflagration_oscillation_frequency_from_zero_crossings(frequency):
     prm = {**DEFLAGRATION, "frequency": frequency}
     t = np.linspace(1e-4, 0.1 - 1e-4, 200001)  # inside (0, T), where the mean pressure is > 0
@@ -139,7 +139,7 @@ def test_detonation_spikes_to_peak_at_zero_and_ends_at_duration_with_the_closed_
     t = np.linspace(0.0, DETONATION["duration"], 400001)
     values = p(t)
     assert values[0] == P_REFL and np.argmax(values) == 0
-    assert P_REFL / P_CJ == pytest.approx(2.42, abs=0.005)  # PHYSICS.md §6: the spike ~ 2.4 P_CJ
+    assert P_REFL / P_CJ == pytest.approx(2.42, abs=0.005)  # docs/loads.md: the spike ~ 2.4 P_CJ
     assert p(DETONATION["duration"]) == 0 and np.all(p(np.array([-1e-9, 20e-3 + 1e-9, 1.0])) == 0)
     assert values.min() >= 0
     # trapezoid rule, steps 5e-8 s = 1e-4 t_s: error ~ 1e-9 relative on the spike

@@ -1,4 +1,4 @@
-"""The 3D slab (issue 8): the same answer on 1, 2 and 3 ranks, and the thin-plate deflection
+"""The 3D slab: the same answer on 1, 2 and 3 ranks, and the thin-plate deflection
 under a slow ramp."""
 import json
 

@@ -38,7 +38,7 @@ def test_p_wave_arrives_at_L_over_c_eff(serial_run):
     c_eff = analytic.wave_speed(homogenise.uniaxial_strain_modulus(case), case.material.rho)
     expected = analytic.free_end_arrival_time(case.geometry.length, c_eff, case.load.rise)
     measured = half_peak_time(history(out), "vx_right_m_s")
-    # 3 %: the bound; it covers the dispersion of a 2 us front on h = 2 mm
+    # 3 %: the acceptance bound; it covers the dispersion of a 2 us front on h = 2 mm
     # (measured gap 1.0 %), and excludes the bulk-only speed (arrival 10 % later).
     assert measured == pytest.approx(expected, rel=0.03)
 
@@ -59,7 +59,7 @@ def test_energy_balance_error_below_one_percent_of_work(serial_run):
     work = h["W_external_J"].max()
     assert work > 0
     # The scheme conserves its discrete energy exactly: only round-off remains, far
-    # below the 1 %; a wrong force, sign or solve shows up at O(1).
+    # below the 1 % acceptance bound; a wrong force, sign or solve shows up at O(1).
     assert np.abs(h["balance_error_J"]).max() < 1e-2 * work
     assert summary["balance_error_relative"] < 1e-10
     assert (out / "fields.pvd").exists() and (out / "figures" / "velocity.png").exists()

@@ -1,4 +1,4 @@
-"""RC wall section (issue 5): scabbing against the 1D closed forms, where bending damages
+"""RC wall section: scabbing against the 1D closed forms, where bending damages
 first with clamped and simple supports, the bars catching the panel once its supports fail,
 and rank independence."""
 import json
@@ -27,7 +27,7 @@ def test_scab_leaves_the_free_face_as_the_1d_theory_says(scab_run):
     wall = scab_run[0]["wall"]
     scab, expected = wall["scab"], wall["estimates"]
     assert scab is not None and scab["velocity_m_s"] > 0
-    # 30 %: the issue's bound. It covers the 1 us front spread over ~1 cell of 5 mm (the
+    # 30 %: the acceptance bound (docs/wall.md). It covers the 1 us front spread over ~1 cell of 5 mm (the
     # dispersed front traps less momentum: measured -22 % on the velocity, -9 % on the
     # thickness) and the interface compliance (c_eff a few per cent below the estimate's c)
     assert scab["thickness_m"] == pytest.approx(expected["scab_thickness_m"], rel=0.3)

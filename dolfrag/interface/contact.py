@@ -55,7 +55,7 @@ class Branches(NamedTuple):
 
 
 def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
-    """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; PHYSICS.md §1).
+    """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; docs/method.md, "Interface laws").
 
     symbol    meaning                                            unit        shape
     r_N       normal reaction, >= 0 in compression               Pa          (n,)

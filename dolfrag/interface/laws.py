@@ -18,7 +18,7 @@ import numpy as np
 
 
 def elastic(g_N, g_T, C_N, C_T):
-    """Linear interface springs (the seed's interface elasticity, C = 10 E / h by default).
+    """Linear interface springs (the reference paper's interface elasticity, C = 10 E / h by default).
 
     g_N (n,) m: normal jump.            C_N Pa/m: normal stiffness.
     g_T (n, d-1) m: tangential jump.    C_T Pa/m: tangential stiffness.
@@ -63,7 +63,7 @@ def _driving_energy(g_N, g_T, C_N, C_T):
 
 
 def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
-    """RCCM adhesion (Raous-Cangemi-Cocu 1999 / Monerie; LMGC90 MAC_CZM; PHYSICS.md §1).
+    """RCCM adhesion (Raous-Cangemi-Cocu 1999 / Monerie; LMGC90 MAC_CZM; docs/method.md).
 
     symbol  meaning                                      unit      shape
     g_N     normal jump, > 0 in opening                  m         (n,)
@@ -131,7 +131,7 @@ def mohr_coulomb_shear(g_T, r_N, secant, C_T, mu_i):
     mu_i    internal friction of the intact material         -       scalar
 
     RCCM drives damage with C_T |g_T|^2 even under compression, so a pressed inclined facet
-    fails in shear at sqrt(C_T w), however hard it is pressed (PHYSICS.md §3). Here only the
+    fails in shear at sqrt(C_T w), however hard it is pressed (docs/hopkinson.md). Here only the
     shear traction above mu_i r_N counts: g_T is scaled to the length
     max(|g_T| - mu_i r_N / (secant C_T), 0). In tension (r_N = 0) and for mu_i = 0 it is g_T.
     Returns (n, d-1) m.
@@ -145,7 +145,7 @@ def mohr_coulomb_shear(g_T, r_N, secant, C_T, mu_i):
 
 
 def rccm_energy(g_N, g_T, beta, C_N, C_T):
-    """Stored elastic energy of the RCCM springs (PHYSICS.md §1), J/m^2, (n,).
+    """Stored elastic energy of the RCCM springs (docs/method.md), J/m^2, (n,).
 
     psi_e = beta^2 / 2 (C_N <g_N>+^2 + C_T |g_T|^2); g_N (n,) m, g_T (n, d-1) m,
     beta (n,) -, C_N, C_T Pa/m. Valid for rccm and rccm_decoupled.
@@ -154,7 +154,7 @@ def rccm_energy(g_N, g_T, beta, C_N, C_T):
 
 
 def rccm_dissipation(beta, w):
-    """Adhesion energy released by RCCM damage (PHYSICS.md §1), J/m^2, (n,).
+    """Adhesion energy released by RCCM damage (docs/method.md), J/m^2, (n,).
 
     D = w (1 - beta); beta (n,) -, w J/m^2. In the rate-independent law the work done on a
     link is rccm_energy + D exactly; the viscous law (b > 0) dissipates the path-dependent
@@ -164,7 +164,7 @@ def rccm_dissipation(beta, w):
 
 
 def rccm_friction_coefficient(beta, mu):
-    """Friction coefficient of a damaged RCCM link, LMGC90 power p = 1 (PHYSICS.md §1).
+    """Friction coefficient of a damaged RCCM link, LMGC90 power p = 1 (docs/method.md).
 
     mu_beta = mu (1 - beta); beta (n,) -, mu (-) scalar or (n,). Returns (n,) -.
     """
@@ -172,7 +172,7 @@ def rccm_friction_coefficient(beta, mu):
 
 
 def rccm_parameters(sigma_c, C_N):
-    """Adhesion energy w (J/m^2) giving RCCM the peak sigma_c (PHYSICS.md §1, the seed).
+    """Adhesion energy w (J/m^2) giving RCCM the peak sigma_c (docs/method.md: the reference paper's coupling).
 
     w = sigma_c^2 / C_N; sigma_c Pa, C_N Pa/m. Strength, stiffness and toughness are then
     coupled: the work to separation is w itself (and w ~ h when C_N = 10 E / h).
@@ -181,7 +181,7 @@ def rccm_parameters(sigma_c, C_N):
 
 
 def decoupled_parameters(sigma_c, G_c):
-    """Effective opening at full separation of rccm_decoupled (PHYSICS.md §1-2), m.
+    """Effective opening at full separation of rccm_decoupled (docs/method.md), m.
 
     delta_c = 2 G_c / sigma_c; sigma_c Pa, G_c J/m^2. The law also needs
     C_N > sigma_c^2 / (2 G_c), i.e. the elastic opening sigma_c / C_N below delta_c.
@@ -193,7 +193,7 @@ def decoupled_parameters(sigma_c, G_c):
 
 
 def rccm_decoupled(g_N, g_T, beta_n, C_N, C_T, sigma_c, G_c):
-    """RCCM springs with a bilinear envelope (LMGC90 MP3_CZM in spirit; PHYSICS.md §1-2).
+    """RCCM springs with a bilinear envelope (LMGC90 MP3_CZM in spirit; docs/method.md).
 
     symbol   meaning                                     unit     shape
     g_N      normal jump, > 0 in opening                 m        (n,)
@@ -237,7 +237,7 @@ def rccm_decoupled(g_N, g_T, beta_n, C_N, C_T, sigma_c, G_c):
 
 
 def rccm_decoupled_dissipation(beta, C_N, sigma_c, G_c):
-    """Energy dissipated by rccm_decoupled so far (PHYSICS.md §1-2), J/m^2, (n,).
+    """Energy dissipated by rccm_decoupled so far (docs/method.md), J/m^2, (n,).
 
     beta (n,) -; C_N Pa/m; sigma_c Pa; G_c J/m^2. With A = sigma_c / (C_N (delta_c -
     delta_0)), the reached effective opening is delta = A delta_c / (beta^2 + A) and
@@ -251,7 +251,7 @@ def rccm_decoupled_dissipation(beta, C_N, sigma_c, G_c):
 
 
 def linear_softening(g_N, g_T, delta_max_n, sigma_c, G_c, beta_ratio=1.0, kappa=1.0):
-    """Linear softening, Camacho-Ortiz / Snozzi-Molinari as in Akantu (PHYSICS.md §2).
+    """Linear softening, Camacho-Ortiz / Snozzi-Molinari as in Akantu (docs/method.md).
 
     symbol       meaning                                  unit    shape
     g_N          normal jump, > 0 in opening              m       (n,)
@@ -294,7 +294,7 @@ def linear_softening(g_N, g_T, delta_max_n, sigma_c, G_c, beta_ratio=1.0, kappa=
 
 
 def linear_softening_dissipation(delta_max, sigma_c, G_c):
-    """Energy dissipated by linear_softening so far (PHYSICS.md §2), J/m^2, (n,).
+    """Energy dissipated by linear_softening so far (docs/method.md), J/m^2, (n,).
 
     delta_max (n,) m; sigma_c Pa; G_c J/m^2. Area under the envelope up to delta_max,
     sigma_c delta_max (1 - delta_max / (2 delta_c)), minus the recoverable triangle
@@ -307,7 +307,7 @@ def linear_softening_dissipation(delta_max, sigma_c, G_c):
 
 
 def threshold(g_N, broken_n, R_c, W_eth):
-    """Rigid threshold law, the seed's (R_c, W_eth) = LMGC90 xQS_WET_DS_CLB (PHYSICS.md §1).
+    """Rigid threshold law, the reference paper's (R_c, W_eth) = LMGC90 xQS_WET_DS_CLB (docs/method.md).
 
     symbol    meaning                                     unit   shape
     g_N       normal gap, > 0 in opening                  m      (n,)
@@ -331,7 +331,7 @@ def threshold(g_N, broken_n, R_c, W_eth):
 
 
 def threshold_dissipation(broken, R_c, W_eth):
-    """Energy lost by the threshold law (PHYSICS.md §1), J/m^2, (n,): R_c W_eth where broken.
+    """Energy lost by the threshold law (docs/method.md), J/m^2, (n,): R_c W_eth where broken.
 
     broken (n,) bool; R_c Pa; W_eth m.
     """
@@ -339,7 +339,7 @@ def threshold_dissipation(broken, R_c, W_eth):
 
 
 def drive(law_step, g_N, g_T, state, *per_step):
-    """0D driver: impose a jump history on n links, no mesh (STYLE.md Part B item 4).
+    """0D driver: impose a jump history on n links, no mesh: the laws checked alone.
 
     law_step(g_N (n,), g_T (n, d-1), state (n,), *extra) -> tuple whose first two entries
     are r_N (n,), r_T (n, d-1) and whose last entry is the new state (n,), e.g.

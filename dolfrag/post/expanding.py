@@ -1,4 +1,4 @@
-"""The expanding bar's block of summary.json (``expanding_bar``, PHYSICS.md §4).
+"""The expanding bar's block of summary.json (``expanding_bar``; the scales: docs/method.md, "Expanding bar").
 
 Rule for the fragment count: a fragment is a piece (post/fragments.py) holding at least
 MASS_SHARE of the body's mass; smaller pieces are debris (a corner chip, a lone triangle

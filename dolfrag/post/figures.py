@@ -148,7 +148,7 @@ def deflection_png(t, w, sdof, path, comm, title="", cracked_at=None, estimate="
 
 
 def wave_png(t, y, v, thickness, path, comm, title="", depths=100):
-    """The wave through a wall's thickness (the seed's Fig. 7): velocity v (m/s) across the
+    """The wave through a wall's thickness (Fig. 7 of the reference paper): velocity v (m/s) across the
     thickness over time at midspan, as a time-depth map. t (k,) s; y, v: per time, the
     depths (m) and velocities of the midspan dofs, interpolated linearly in depth.
     Collective; rank 0 draws."""

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from dolfrag import compat
+from dolfrag.post.vtk import FieldsFile
 
 
 def dof_damage(space, links, link_damage, out):
@@ -43,9 +44,8 @@ class RunOutput:
             self._csv = csv.writer(self._csv_file)
             self._csv_file.flush()
         comm.barrier()
-        # the VTK writer's own index of this run segment (run/fields.py writes fields.pvd)
-        self.fields_name = f"fields-from-step{resume_step or 0}-.pvd"
-        self._vtk = compat.vtk_file(comm, self.out / self.fields_name) if fields else None
+        # its snapshot times are checkpointed: a resumed run continues the series
+        self.vtk = FieldsFile(comm, self.out / "fields.pvd") if fields else None
 
     def row(self, values):
         if self.comm.rank == 0:
@@ -57,7 +57,7 @@ class RunOutput:
         Collective; updates their ghost values."""
         for f in functions:
             compat.scatter_forward(f)
-        (vtk or self._vtk).write_function(functions, t)
+        (vtk or self.vtk).write_function(functions, t)
 
     def links(self, columns, rows):
         """links.csv: one row per link, gathered from every rank (rank 0 writes).
@@ -72,11 +72,7 @@ class RunOutput:
 
     def failure(self, write):
         """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""
-        vtk = compat.vtk_file(self.comm, self.out / "failure.pvd")
-        try:
-            write(vtk)
-        finally:
-            vtk.close()
+        write(FieldsFile(self.comm, self.out / "failure.pvd"))
 
     def summary(self, data):
         if self.comm.rank == 0:
@@ -85,8 +81,6 @@ class RunOutput:
             os.replace(tmp, self.out / "summary.json")
 
     def close(self):
-        if self._vtk is not None:
-            self._vtk.close()
         if self.comm.rank == 0:
             self._csv_file.close()
 

@@ -7,7 +7,7 @@ from time import perf_counter
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__
+from dolfrag import __version__, guards
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.post.output import RunOutput
 from dolfrag.problem import Problem
@@ -58,6 +58,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
         case = checkpoint.case_of(out)
     elif not isinstance(case, Case):
         case = load_case(case)
+    guards.report(case, comm)
     wall_start = perf_counter()
     saved = checkpoint.load(out, comm) if resume else None
     problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
@@ -68,7 +69,8 @@ def run(case, out, quiet=False, comm=None, resume=False):
     ctx = RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan))
     history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
     stateful = {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
-                "stretch": stretch, **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
+                "stretch": stretch, "fields_file": output.vtk,
+                **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:
         for name, obj in stateful.items():
@@ -89,8 +91,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
     stop = Stop(comm)
     try:
         with stop:
-            if saved is None:
-                fields.start()
+            fields.start()
             try:
                 last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step)
             except ConvergenceError:
@@ -102,10 +103,10 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary["status"] = "completed" if last == problem.n_steps else "interrupted"
     except BaseException as err:
         summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"
-        _close(summary, history, integ, output, fields, before + perf_counter() - wall_start)
+        _close(summary, history, integ, output, before + perf_counter() - wall_start)
         output.summary(summary)
         raise
-    _close(summary, history, integ, output, fields, before + perf_counter() - wall_start)
+    _close(summary, history, integ, output, before + perf_counter() - wall_start)
     if summary["status"] != "completed":
         summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm))
         output.summary(summary)
@@ -146,13 +147,12 @@ def _complete(ctx, output, fields, summary, summarising, reports):
             report.figures(folder, final)
 
 
-def _close(summary, history, integ, output, fields, wall_time):
+def _close(summary, history, integ, output, wall_time):
     """Close history.csv and fields.pvd; the steps, wall time and energies into ``summary``."""
     summary["steps_done"] = integ.n
     summary["wall_time_s"] = wall_time
     history.summarise(summary)
     output.close()
-    fields.close()
 
 
 def _header(case, problem, integ, comm):

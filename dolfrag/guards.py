@@ -1,0 +1,97 @@
+"""Size and run-length guards, from the case alone (before meshing): a mesh or a run too
+big for the machine is refused with its estimate and the key that raises the limit, and
+a body only a few elements thick gets a one-line warning.
+
+Estimates (measured on gmsh's meshes, dolfrag/cases at several sizes h): an unstructured
+triangle mesh has about 2.4 cells per h^2 of area (2.33-2.41), a structured one 2 per
+square, a tetrahedral one about 6 per h^3 of volume (5.7 on a 0.3 m x 0.3 m x 0.1 m slab
+at h = 0.03 m). The bulk's stable step is about 0.5 h / c_p in 2D (0.47-0.66) and
+0.16 h / c_p in 3D (c_p the P-wave speed); rebars shorten it further, so the step count
+is a lower bound.
+"""
+import math
+import sys
+
+from dolfrag import analytic
+from dolfrag.config import CaseError
+
+CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)
+CELLS_PER_H2_GRID = 2.0    # triangles per h^2 of area (geometry.structured)
+CELLS_PER_H3 = 6.0         # tetrahedra per h^3 of volume
+STEP_PER_H = {2: 0.5, 3: 0.16}   # stable bulk step x c_p / h
+THIN = 3                   # fewer elements than this across: warned
+AXES = {"left": 0, "right": 0, "bottom": 1, "top": 1, "front": 2, "back": 2}
+EXTENT_KEYS = ("geometry.length", "geometry.width", "geometry.thickness")
+
+
+def extents(geometry):
+    """(length, width[, thickness]) (m) of a rectangle or box; None for an imported mesh."""
+    if geometry.kind == "file":
+        return None
+    return (geometry.length, geometry.width, geometry.thickness)[:geometry.tdim]
+
+
+def cells_in(sides, h, structured=False):
+    """Cells gmsh makes in a rectangle or box of these sides (m) at element size h (m)."""
+    if len(sides) == 3:
+        return CELLS_PER_H3 * math.prod(sides) / h**3
+    return (CELLS_PER_H2_GRID if structured else CELLS_PER_H2) * math.prod(sides) / h**2
+
+
+def cells_estimate(geometry, h):
+    """Cells gmsh makes for a rectangle or box at element size h (m); None for a file
+    (mesh.build estimates a .geo from its bounding box once gmsh has read it)."""
+    sides = extents(geometry)
+    return None if sides is None else cells_in(sides, h, geometry.structured)
+
+
+def steps_estimate(case):
+    """Time steps of the run: time.end over the step, for imex time.cfl x the bulk's
+    estimated stable step at mesh.size with the stiffest material, for theta time.dt or
+    the load's accuracy step."""
+    time = case.time
+    if time.scheme == "theta":
+        from dolfrag.solver.theta import accuracy_time_step
+        return time.end / (time.dt or accuracy_time_step(case.load, time.end))
+    c_p = max(math.sqrt(analytic.p_wave_modulus(m.E, m.nu, case.material.hypothesis) / m.rho)
+              for m in (case.material, *case.materials.values()))
+    return time.end / (time.cfl * STEP_PER_H[case.geometry.tdim] * case.mesh.size / c_p)
+
+
+def check(case):
+    """Refuse (CaseError) a case whose mesh or run is above run.max_cells / run.max_steps,
+    or whose mesh.size exceeds the body's thinnest extent. Returns the warning (one line,
+    or None) when fewer than THIN elements fit across the loaded thickness or the thinnest
+    extent."""
+    h = case.mesh.size
+    sides = extents(case.geometry)
+    thinnest = None if sides is None else min(range(len(sides)), key=sides.__getitem__)
+    if sides is not None and h > sides[thinnest]:
+        raise CaseError(f"mesh.size = {h!r}: larger than the body's thinnest extent "
+                        f"{EXTENT_KEYS[thinnest]} = {sides[thinnest]!r}; must be <= {sides[thinnest]:g} m "
+                        f"(<= {sides[thinnest] / THIN:.3g} m for {THIN} elements across)")
+    cells = cells_estimate(case.geometry, h)
+    if cells is not None and cells > case.run.max_cells:
+        raise CaseError(f"mesh.size = {h!r}: about {cells:.3g} cells, above run.max_cells = "
+                        f"{case.run.max_cells:g}; raise mesh.size or run.max_cells (--set run.max_cells=...)")
+    steps = steps_estimate(case)
+    if steps > case.run.max_steps:
+        raise CaseError(f"time.end = {case.time.end!r}: about {steps:.3g} time steps of {case.time.end / steps:.3g} s "
+                        f"(the stable step at mesh.size and material.E), above run.max_steps = "
+                        f"{case.run.max_steps:g}; shorten time.end or raise run.max_steps (--set run.max_steps=...)")
+    if sides is None:
+        return None
+    loaded = AXES.get(case.load.boundary) if case.load.kind == "pressure" else None
+    for axis, what in ((loaded, "loaded thickness"), (thinnest, "thinnest extent")):
+        if axis is not None and axis < len(sides) and sides[axis] / h < THIN:
+            return (f"dolfrag: warning: the {what} {EXTENT_KEYS[axis]} = {sides[axis]:g} m is only "
+                    f"{sides[axis] / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
+                    "resolve a wave or a bending crack")
+    return None
+
+
+def report(case, comm):
+    """check(case), its warning printed to stderr by rank 0."""
+    warning = check(case)
+    if warning and comm.rank == 0:
+        print(warning, file=sys.stderr)

@@ -1,0 +1,129 @@
+"""Every bad input exits 2 with one line naming the key, without a traceback, and writes
+nothing: a table of them through the command's own entry point (cli.main, in-process:
+most fail before meshing, in milliseconds), and more ranks than cells under mpirun."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+from conftest import ROOT
+from dolfrag import cli
+
+GEO = """Point(1) = {0, 0, 0}; Point(2) = {0.1, 0, 0}; Point(3) = {0.1, 0.04, 0}; Point(4) = {0, 0.04, 0};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Surface("concrete") = {1}; Physical Curve("impact") = {4}; Physical Curve("free") = {2};
+"""
+TRIANGLE = """$MeshFormat
+2.2 0 8
+$EndMeshFormat
+$PhysicalNames
+2
+1 1 "impact"
+2 2 "concrete"
+$EndPhysicalNames
+$Nodes
+3
+1 0 0 0
+2 0.1 0 0
+3 0 0.1 0
+$EndNodes
+$Elements
+2
+1 1 2 1 1 3 1
+2 2 2 2 1 1 2 3
+$EndElements
+"""  # one triangle, its edge x = 0 named "impact"
+FILE = ["geometry.kind='file'", "geometry.file={geo}", "geometry.length=", "geometry.width=",
+        "geometry.structured=", "load.boundary='impact'", "supports.rollers=[]"]
+STEEL = ["materials.steel.E=2e11", "materials.steel.nu=0.3", "materials.steel.rho=7850.0"]
+BARS = ["rebar.faces=['bottom']", "rebar.cover=0.01", "rebar.diameter=0.005", "rebar.spacing=0.1"]
+SHORT = ["time.end=2e-6", "output.figures=false", "output.fields=0"]
+
+# name: (case, --set overrides, other arguments, the key the one line must name)
+BAD = {
+    "negative modulus": ("sound-bar", ["material.E=-1"], [], "material.E"),
+    "non-numeric size": ("sound-bar", ["mesh.size=abc"], [], "mesh.size"),
+    "unknown key": ("sound-bar", ["material.Ee=1"], [], "material.Ee"),
+    "unknown section": ("sound-bar", ["solver.tol=1"], [], "solver"),
+    "unknown law": ("sound-bar", ["interface.law='glue'"], [], "interface.law"),
+    "unknown boundary": ("sound-bar", ["load.boundary='ceiling'"], [], "load.boundary"),
+    "unknown case": ("no-such-case", [], [], "no-such-case"),
+    "Poisson 0.5": ("sound-bar", ["material.nu=0.5"], [], "material.nu"),
+    "cfl above 1": ("sound-bar", ["time.cfl=2"], [], "time.cfl"),
+    "no end time": ("sound-bar", ["time.end=0"], [], "time.end"),
+    "history every 0 steps": ("sound-bar", ["output.every=0"], [], "output.every"),
+    "pulse shorter than its rise": ("sound-bar", ["load.duration=1e-6"], [], "load.duration"),
+    "rccm strength and w": ("sound-bar", ["interface.law='rccm'", "interface.sigma_c=3e6", "interface.w=1"], [],
+                            "interface.sigma_c"),
+    "rccm without strength": ("sound-bar", ["interface.law='rccm'"], [], "interface.sigma_c"),
+    "C_T and shear_ratio": ("sound-bar", ["interface.C_T=1e15", "interface.shear_ratio=2"], [], "interface.C_T"),
+    "theta with a rigid law": ("sound-bar", ["time.scheme='theta'", "interface.law='threshold'", "interface.R_c=1e6",
+                                             "interface.W_eth=1e-5"], [], "time.scheme"),
+    "a boundary in two support lists": ("sound-bar", ["supports.clamped=['top']"], [], "supports"),
+    "clamped load boundary": ("sound-bar", ["supports.clamped=['left']"], [], "supports.clamped"),
+    "half a load region": ("sound-bar", ["load.region_min=[0.0, 0.0]"], [], "load.region_min"),
+    "unknown geometry": ("sound-bar", ["geometry.kind='sphere'"], [], "geometry.kind"),
+    "malformed --set": ("sound-bar", ["mesh.size"], [], "mesh.size"),
+    "missing mesh file": ("sound-bar", [*FILE[:1], "geometry.file='absent.msh'", *FILE[2:]], [], "geometry.file"),
+    "negative cell limit": ("sound-bar", ["run.max_cells=-1"], [], "run.max_cells"),
+    "oversized mesh": ("sound-bar", ["mesh.size=1e-6"], [], "run.max_cells"),
+    "too many steps": ("sound-bar", ["material.E=1e30"], [], "run.max_steps"),
+    "two-cell mesh": ("sound-bar", ["mesh.size=0.2"], [], "mesh.size"),
+    "--out is a file": ("sound-bar", [], ["--out", "{file}"], "--out"),
+    "--out inside a file": ("sound-bar", [], ["--out", "{file}/out"], "--out"),
+    "--out not empty": ("sound-bar", [], ["--out", "{full}"], "--out"),
+    "--out not writable": ("sound-bar", [], ["--out", "/proc/sys/dolfrag-out"], "--out"),
+    "oversized mesh of a .geo": ("sound-bar", FILE + ["mesh.size=1e-6"], [], "run.max_cells"),
+    "a .msh above the cell limit": ("sound-bar", [s.replace("{geo}", "{msh}") for s in FILE]
+                                    + ["run.max_cells=0.5"], [], "run.max_cells"),
+    "group of a generated mesh": ("sound-bar", STEEL, [], "materials.steel"),
+    "group not in the mesh file": ("sound-bar", FILE + STEEL + ["mesh.size=0.01"] + SHORT, [], "materials.steel"),
+    "bar axis normal to its face": ("sound-bar", BARS + ["rebar.faces=['left']"], [], "rebar.direction"),
+    "two bar axes in 2D": ("sound-bar", BARS + ["rebar.direction='xy'"], [], "rebar.direction"),
+    "bar axis z in 2D": ("sound-bar", BARS + ["rebar.direction='z'"], [], "rebar.direction"),
+    "bars thicker than their spacing": ("sound-bar", BARS + ["rebar.spacing=0.004"], [], "rebar.diameter"),
+    "bars thicker than twice the cover": ("sound-bar", BARS + ["rebar.cover=0.002"], [], "rebar.diameter"),
+    "rupture before yield": ("sound-bar", BARS + ["rebar.f_y=500e6", "rebar.eps_u=1e-3"], [], "rebar.eps_u"),
+    "bar keys without faces": ("sound-bar", ["rebar.cover=0.01"], [], "rebar.cover"),
+    "bar layer without spacing": ("sound-bar", BARS + ["rebar.spacing="], [], "rebar.spacing"),
+    "fragments after the end": ("sound-bar", ["output.fragments_at=[1e-5, 1.0]"], [], "output.fragments_at"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD))
+def test_bad_input_exits_2_with_one_line_and_writes_nothing(name, tmp_path, capsys, monkeypatch):
+    case, sets, extra, key = BAD[name]
+    (tmp_path / "bar.geo").write_text(GEO)
+    (tmp_path / "tri.msh").write_text(TRIANGLE)
+    (tmp_path / "file").write_text("x")
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "mine.txt").write_text("x")
+    monkeypatch.chdir(tmp_path)  # relative paths (absent.msh) resolve here
+    where = {"geo": tmp_path / "bar.geo", "msh": tmp_path / "tri.msh", "file": tmp_path / "file",
+             "full": tmp_path / "full"}
+    args = [a.format(**where) for a in extra] or ["--out", str(tmp_path / "out")]
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    status = cli.main(["run", case, *args, "--quiet", *(x for s in sets for x in ("--set", s.format(**where)))])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and key in lines[0] and lines[0].startswith("dolfrag: error: "), err
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing written
+
+
+def test_more_ranks_than_cells_exits_2_on_every_rank(tmp_path):
+    """A one-triangle mesh on two ranks: one rank would own nothing (mpirun -q: without
+    its own banner about a non-zero exit)."""
+    (tmp_path / "tri.msh").write_text(TRIANGLE)
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OPENBLAS_NUM_THREADS="1")
+    sets = [s.format(geo=tmp_path / "tri.msh") for s in FILE] + ["mesh.size=0.01"] + SHORT
+    result = subprocess.run(["mpirun", "-q", "-n", "2", sys.executable, "-m", "dolfrag.cli", "run", "sound-bar",
+                             "--out", str(tmp_path / "out"), *(x for s in sets for x in ("--set", s))],
+                            capture_output=True, text=True, env=env, cwd=ROOT, timeout=120)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "too few for 2 ranks" in lines[0] and "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()
