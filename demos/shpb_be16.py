@@ -77,8 +77,8 @@ def cell(value, scale=1.0, digits=1):
     return "" if value is None else f"{value * scale:.{digits}f}"
 
 
-def seed_cells(source):
-    planes = shpb["seed"].get(source, {}).get("breaks_from_free_end_m")
+def paper_cells(source):
+    planes = shpb["paper"].get(source, {}).get("breaks_from_free_end_m")
     if planes is None:
         return ["", "", "", ""]
     return [cell(planes[0], 1e3), "", cell(min(planes), 1e3), f"{len(planes)} / {len(planes) + 1}"]
@@ -87,7 +87,7 @@ def seed_cells(source):
 rows = list(zip(
     ["first break from the free end (mm)", "first break time (µs)", "free-end block, far edge (mm)",
      "breaks / blocks (>= 2 % of the mass)"],
-    seed_cells("experiment"), seed_cells("simulation"),
+    paper_cells("experiment"), paper_cells("simulation"),
     [cell(closed["spall_distance_from_free_end_m"], 1e3), cell(closed["break_time_s"], 1e6),
      cell(closed["spall_distance_from_free_end_m"], 1e3), "1 / 2"],
     [cell(first["distance_from_free_end_m"], 1e3), cell(first["time_s"], 1e6),

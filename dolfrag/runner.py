@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, analytic, bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag import (__version__, analytic, bulk, compat, homogenise, loads, mesh, rebar, rebar_layout,
+                     space as spaces, supports)
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -149,6 +150,13 @@ def _free_end(case):
     return case.geometry.length if case.load.boundary == "left" else 0.0
 
 
+def _free_end_probe(case, space, domain):
+    """shpb.FreeEndProbe of the face opposite the loaded one of a bar (``_free_end``)."""
+    face = "right" if case.load.boundary == "left" else "left"
+    dofs = space.boundary_dofs(domain.facet_tags, domain.boundary_tag(face))
+    return shpb.FreeEndProbe(space.gdim * dofs[dofs < space.n_owned_dofs], 1.0 if face == "right" else -1.0)
+
+
 class WallSection(NamedTuple):
     """A wall section (2D) or slab (3D) that gets the ``wall`` block (post/wall.py): span (m;
     (L_x, L_y) for a slab), thickness H (m), free_face (m, its coordinate on thickness_axis),
@@ -236,6 +244,7 @@ def run(case, out, quiet=False, comm=None):
     max_error, max_work, energies = 0.0, 0.0, None
     break_time = np.full(len(links), np.nan)  # s, when each link broke
     free_end = _free_end(case)
+    free_probe = None if free_end is None else _free_end_probe(case, space, domain)
     # s, times still to measure fragments at: the requested ones, and a bar's MEASURE_TIME
     bar_time = {shpb.MEASURE_TIME} if free_end is not None and case.time.end >= shpb.MEASURE_TIME else set()
     pending = sorted(set(case.output.fragments_at) | bar_time)
@@ -282,6 +291,8 @@ def run(case, out, quiet=False, comm=None):
                     deflection[1].append(probe_sums[-1, 0] / max(probe_sums[-1, 1], 1))
                 max_error = max(max_error, abs(energies.balance_error))
                 max_work = max(max_work, abs(energies.external_work))
+            if free_probe is not None:
+                free_probe.record(integ.energy_time, integ.v.x.array)
             if k in snapshots:
                 write_fields(integ.t)
             while pending and integ.t >= pending[0] - integ.h / 2:  # the step nearest to it
@@ -347,7 +358,8 @@ def run(case, out, quiet=False, comm=None):
             loads.signal(case.load), analytic.wave_speed(E, rho), rho, sigma_c, case.geometry.length,
             loads.signal_end(case.load), at=measured_at)
         summary["shpb"] = shpb.shpb_block(frags, at_measure, measured_at, free_end, sigma_c, rho, E, case.name,
-                                          closed_form=closed)
+                                          closed_form=closed, free_end_velocity=free_probe.series(comm),
+                                          E_eff=homogenise.bar_modulus(case))
     output.summary(summary)
     if case.output.figures:
         figures = Path(out) / "figures"
