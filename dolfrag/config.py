@@ -242,6 +242,8 @@ class Material:
     nu: float = _f("float", bounds=">= 0, < 0.5")               # Poisson's ratio [-], [0, 0.5)
     rho: float = _f("float", bounds="> 0", unit="kg/m^3")       # density [kg/m^3], > 0
     hypothesis: str = _f("str", "plane_strain", choices=HYPOTHESES)  # 2D only, ignored in 3D
+    # artificial bulk viscosity in compression (viscosity.py; imex only: theta damps with theta > 1/2)
+    bulk_viscosity: bool = _f("bool", True)
 
 
 @dataclass(frozen=True)

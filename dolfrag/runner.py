@@ -13,7 +13,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import (__version__, analytic, bulk, compat, homogenise, loads, mesh, rebar, rebar_layout,
-                     space as spaces, supports)
+                     space as spaces, supports, viscosity)
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -29,8 +29,8 @@ from dolfrag.solver.theta import Theta, accuracy_time_step
 from dolfrag.stretch import Stretch
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
-                  "D_numerical_J", "D_rebar_plastic_J", "W_external_J", "balance_error_J"]
-ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic",
+                  "D_numerical_J", "D_rebar_plastic_J", "D_viscous_J", "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic", "viscous",
                  "external_work", "balance_error"]
 # velocity_x.png: each fragment moved off the body's centre by this share of its centroid
 # offset, so that cracks a few micrometres wide show (the seed's Fig. 6)
@@ -96,6 +96,9 @@ def _setup(case, comm):
         held = np.union1d(held, stretch.held)
     stars = Stars(space, links, held)
     time = case.time
+    viscous = viscosity.build(space, domain, case) if time.scheme == "imex" else None
+    if viscous is not None:  # its linear term lowers the stable step
+        bulk_ops.dt_crit *= viscosity.step_factor(viscous.options)
     if time.scheme == "theta":  # unconditionally stable: the step follows accuracy, not dt_crit
         h = time.dt or accuracy_time_step(case.load, time.end)
     else:
@@ -114,7 +117,7 @@ def _setup(case, comm):
                            stars.constrained, rebars=bars)
     else:
         step = interface_step(case.interface, case.material.E, case.mesh.size, stars, jump, bulk_ops.m.x.array, h)
-        integrator = Imex(space, bulk_ops, jump, step, load, pressure, h, rebars=bars)
+        integrator = Imex(space, bulk_ops, jump, step, load, pressure, h, rebars=bars, viscosity=viscous)
     if stretch is not None:
         stretch.start(integrator, stars.comps)
     return domain, space, links, integrator, n_steps, bulk_ops.dt_crit, stretch

@@ -82,7 +82,8 @@ def test_block_lists_breaks_by_time_blocks_from_the_free_end_and_the_paper():
     assert block["analytic_ejection_velocity_m_s"] == analytic.ejection_velocity(21e6, RHO, E)
     # BE12: the test's two breaks (69 and 41 mm) and the paper's simulated ones (42 mm first)
     assert block["paper"] == {"experiment": {"breaks_from_free_end_m": [0.069, 0.041]},
-                              "simulation": {"breaks_from_free_end_m": [0.042, 0.064]}}
+                              "simulation": {"breaks_from_free_end_m": [0.042, 0.064],
+                                             "block_velocities_m_s": [2.4, 2.9]}}
     assert "paper" not in shpb.shpb_block(final, measured, 80e-6, L, None, RHO, E, "my-bar")
     assert block["analytic_1d"] is None  # no closed form given
     json.dumps(block)
@@ -208,7 +209,7 @@ def test_be16_run_measures_at_80_us_with_the_paper_and_draws_the_figures(be16):
     assert block["analytic_1d"]["spall_distance_from_free_end_m"] == closed.distance
     assert block["analytic_1d"]["relative_velocity_m_s"] == closed.relative_velocity
     assert block["paper"] == {"experiment": {"breaks_from_free_end_m": [0.0658]},
-                             "simulation": {"breaks_from_free_end_m": [0.065]}}
+                             "simulation": {"breaks_from_free_end_m": [0.065], "block_velocities_m_s": [2.0]}}
     assert json.loads((out / "summary.json").read_text())["shpb"] == block
     for name in ("velocity_x.png", "load.png"):
         assert (out / "figures" / name).stat().st_size > 10_000, name

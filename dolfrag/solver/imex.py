@@ -43,11 +43,12 @@ class Energies:
     numerical: float = 0.0  # dissipated by the time scheme itself (theta > 1/2; 0 for imex)
     rebar: float = 0.0  # elastic energy of the bars
     plastic: float = 0.0  # dissipated by the bars' yielding
+    viscous: float = 0.0  # dissipated by the artificial bulk viscosity (viscosity.py)
 
     @property
     def balance_error(self):
         return (self.kinetic + self.bulk + self.interface + self.damage + self.contact + self.numerical
-                + self.rebar + self.plastic - self.external_work)
+                + self.rebar + self.plastic + self.viscous - self.external_work)
 
 
 class ElasticSprings:
@@ -98,12 +99,13 @@ class Imex:
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
     nodal forces per pascal; pressure: p(t) in Pa; h: time step (s); rebars: rebar.Rebars
     or None. The bars are explicit, like the bulk: their forces need every ghost
-    displacement, so with bars each step ends with a forward scatter of u.
+    displacement, so with bars each step ends with a forward scatter of u. viscosity:
+    viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}).
     """
 
-    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None):
+    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None, viscosity=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
-        self.rebars = rebars
+        self.rebars, self.viscosity = rebars, viscosity
         self.model = step.model
         self.pressure, self.h = pressure, h
         V = space.V
@@ -159,6 +161,8 @@ class Imex:
             np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
+        if self.viscosity is not None:
+            self.viscosity.add_force(v, f)
         timer.lap("bulk")
         compat.scatter_forward(self.f)
         timer.lap("communication")
@@ -182,6 +186,8 @@ class Imex:
         ghosts = self.star_ghosts
         v[ghosts] += dv[ghosts]
         u[ghosts] += h * v[ghosts]
+        if self.viscosity is not None:
+            self.viscosity.book(v, h)
         timer.lap("update")
         if self.rebars is not None:
             compat.scatter_forward(self.u)
@@ -210,6 +216,7 @@ class Imex:
                           weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                           np.count_nonzero(self.model.broken()),
                           bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
-                          bars.dissipated if bars else 0.0])
+                          bars.dissipated if bars else 0.0,
+                          self.viscosity.dissipated if self.viscosity else 0.0])
         total = self.space.mesh.comm.allreduce(local, op=MPI.SUM)
-        return Energies(*total[:6], int(total[6]), rebar=total[7], plastic=total[8])
+        return Energies(*total[:6], int(total[6]), rebar=total[7], plastic=total[8], viscous=total[9])
