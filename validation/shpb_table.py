@@ -80,9 +80,10 @@ def c3(breaks, links, length, t_1d, zone=C3_ZONE):
     """(passed, fragment boundaries, broken links) within ``zone`` (m) of the loaded end
     (x = 0) before t_1d (s). breaks: summary.json's ``breaks``; links: links.csv's columns
     x (m), break_time_s (s)."""
-    # a boundary whose completion time is unknown (None) counts: it may be early
+    # a break with no time (None) is a pair of fragments consecutive along the bar that never
+    # shared a facet (post/fragments.py), not a boundary that completed
     early = [b for b in breaks if b["distance_from_free_end_m"] >= length - zone
-             and (b["time_s"] is None or b["time_s"] < t_1d)]
+             and b["time_s"] is not None and b["time_s"] < t_1d]
     cut = int(np.count_nonzero((links["x"] <= zone) & (links["break_time_s"] < t_1d)))
     return not early, len(early), cut
 
