@@ -480,9 +480,6 @@ def _check(case: Case) -> None:
     if case.time.scheme == "theta" and law.law in ("threshold", "linear_softening"):
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
-    if case.time.scheme == "theta" and law.mu_i:
-        raise CaseError(f"interface.mu_i = {law.mu_i!r} with time.scheme = 'theta': not available yet "
-                        "(the contact pressure it needs comes from the imex star solve); use 'imex' or mu_i = 0")
     if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
         raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
                         f"{law.law!r}), Pa")

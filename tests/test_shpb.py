@@ -323,3 +323,18 @@ def test_the_criteria_judge_hand_made_values():
     # C4: +-15 %
     assert table.c4({"half_pullback_m_s": 2.6}, 2.32)[0] and not table.c4({"half_pullback_m_s": 2.7}, 2.32)[0]
     assert table.c4(None, 2.32) == (False, None)
+
+
+def test_internal_friction_keeps_be12_loaded_end_whole_with_theta_too(tmp_path):
+    # as tests/test_nonsmooth.py for imex: 58 MPa puts 29 MPa of shear on 45-degree facets,
+    # above the RCCM shear peak sigma_c = 28 MPa, so without internal friction links break
+    # while the pulse enters; the same facets carry 29 MPa of contact pressure, so with
+    # mu_i = 0.75 the shear that drives damage is 29 - 0.75 x 29 = 7 MPa and none may break
+    # before the reflected tension arrives (> 55 us). This checks that the theta step feeds
+    # its contact reactions to the law.
+    broken = {}
+    for mu_i in (0.0, 0.75):
+        case = load_case("shpb-be12", [f"interface.mu_i={mu_i}", "time.scheme=theta", "time.end=5e-5",
+                                       "output.fields=0", "output.figures=false"])
+        broken[mu_i] = run(case, tmp_path / f"mu_i{mu_i}", quiet=True, comm=MPI.COMM_SELF)["broken_links"]
+    assert broken[0.0] > 10 and broken[0.75] == 0

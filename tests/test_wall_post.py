@@ -70,6 +70,20 @@ def test_a_panel_through_the_thickness_or_a_loaded_face_chip_is_no_scab():
     assert wall.scab(pieces([BODY, (0.4, 0.6, 0.07, H - h)], [0.0, 3.0]), H, axis=1, thickness=H, h=h) is None
 
 
+def test_a_wedge_off_a_clamped_corner_is_no_scab_a_layer_is():
+    # corners of the free face cut off by inclined cracks next to the clamped ends: 32.5 mm
+    # deep, 20 mm wide (a wedge is at most twice as wide as deep); and a layer 3 x as wide
+    corners = pieces([(0.0, 0.02, H - 0.0325, H), (0.02, 0.98, 0.0, H), (0.98, L, H - 0.0325, H)], [-0.03, 0.0, -0.03])
+    assert wall.scab(corners, H, axis=1, thickness=H, h=h) is None
+    layer = pieces([BODY, (0.4, 0.4 + 3 * 0.0325, H - 0.0325, H)], [0.0, 2.0])
+    assert wall.scab(layer, H, axis=1, thickness=H, h=h)["fragments"] == [1]
+    narrow = pieces([BODY, (0.4, 0.4 + 2.9 * 0.0325, H - 0.0325, H)], [0.0, 2.0])
+    assert wall.scab(narrow, H, axis=1, thickness=H, h=h) is None
+    # in 3D every span axis must be 3 x the depth: a 20 mm deep strip 50 mm wide is no scab
+    assert wall.scab(slab_pieces([SLAB, (0.2, 0.8, 0.3, 0.35, 0.08, H)], [0.0, 2.0]), H, axis=2, thickness=H,
+                     h=h) is None
+
+
 def line(x, y_from, y_to, broken=True, time=np.nan):
     """Links on the vertices (x, y) of a vertical line of facets from y_from to y_to,
     every h. Each inner vertex carries two links (the facets above and below), each of

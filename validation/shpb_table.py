@@ -151,14 +151,15 @@ def ms(x):
 def criteria_table(rows):
     """Markdown lines: one row per run, each criterion PASS or its measured gap."""
     lines = ["| case | h (mm) | cells | C1 edge (1D) mm | C2 share, band | C3 boundaries / links broken "
-             "| C4 ½ pullback (V_e, V_e eff) m/s | wall (s) |", "|---|---|---|---|---|---|---|---|"]
+             "| C4 ½ pullback (V_e, V_e eff); rebound (2 V_e) m/s | wall (s) |", "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         c1_text = f"{mm(r['edge_m'])} ({mm(r['delta_1d_m'])}): " + verdict(r["C1"], f"off by {mm(r['C1_gap_m'])} mm")
         c2_text = (f"{r['share']:.2f}, {r['small_pieces']} pieces {100 * r['small_share']:.0f} %: "
                    + verdict(r["C2"], "share below 0.35" if r["share"] < C2_MASS_SHARE else
                              f"meshes differ by {mm(r['C2_disagreement_m'])} mm more than h"))
         c3_text = f"{r['C3_boundaries']} / {r['C3_links']}: " + verdict(r["C3"], "loaded end cut")
-        c4_text = (f"{ms(r['half_pullback_m_s'])} ({ms(r['V_e_m_s'])}, {ms(r['V_e_eff_m_s'])}): "
+        c4_text = (f"{ms(r['half_pullback_m_s'])} ({ms(r['V_e_m_s'])}, {ms(r['V_e_eff_m_s'])}); rebound "
+                   f"{ms(r['rebound_m_s'])} (2 V_e {ms(2 * r['V_e_m_s'])}): "
                    + verdict(r["C4"], "no pullback" if r["half_pullback_m_s"] is None else
                              f"{gap_percent(r['half_pullback_m_s'], r['V_e_m_s']):+.0f} %"))
         lines.append(f"| {r['case']} | {r['h_m'] * 1e3:g} | {r['cells']} | {c1_text} | {c2_text} | {c3_text} | "
