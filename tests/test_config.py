@@ -188,7 +188,7 @@ def test_invalid_case_raises_one_line_error(tmp_path, changes, csv, key):
 def test_error_message_format(tmp_path):
     with pytest.raises(CaseError, match=r"^material\.E = -3\.0: must be a number > 0 \(Pa\)$"):
         load_case(write_case(tmp_path, {"material.E": -3.0}))
-    with pytest.raises(CaseError, match="^unknown key 'material.Ee'; allowed: E, nu, rho, hypothesis$"):
+    with pytest.raises(CaseError, match="^unknown key 'material.Ee'; allowed: E, nu, rho, hypothesis, bulk_viscosity$"):
         load_case(write_case(tmp_path, {"material.Ee": 1.0}))
 
 
