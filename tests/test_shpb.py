@@ -240,6 +240,11 @@ def test_be16_gives_the_same_breaks_and_velocities_on_one_and_two_ranks(be16, tm
     # a difference of two such velocities: twice the bound
     assert np.allclose(one["ejection_velocities_m_s"], two["ejection_velocities_m_s"], rtol=0,
                        atol=2 * steps * RTOL * speed)
+    # the free end's pullback: the same steps, its velocities to the same bound
+    assert one["pullback"]["peak_time_s"] == two["pullback"]["peak_time_s"]
+    assert one["pullback"]["minimum_time_s"] == two["pullback"]["minimum_time_s"]
+    assert one["pullback"]["pullback_m_s"] == pytest.approx(two["pullback"]["pullback_m_s"], abs=2 * steps * RTOL * speed)
+    assert one["effective_modulus_Pa"] == pytest.approx(two["effective_modulus_Pa"], rel=1e-12)
 
 
 def test_a_run_shorter_than_80_us_is_measured_at_its_end(tmp_path):
