@@ -127,7 +127,7 @@ def test_pullback_is_the_drop_from_the_first_peak_to_the_first_minimum():
     assert back["peak_m_s"] == pytest.approx(8.0, abs=1e-12) and back["peak_time_s"] == pytest.approx(10e-6)
     assert back["pullback_m_s"] == pytest.approx(5.0, abs=1e-12) and back["half_pullback_m_s"] == pytest.approx(2.5)
     assert back["minimum_time_s"] == pytest.approx(30e-6) and back["rebound_m_s"] is None  # no fall after it
-    # a ringing of 0.45 m/s (a fifth of V_e) is not a spall signal; the peak and the minimum
+    # a ringing of 0.45 m/s (BE16 without the bulk viscosity) is not a spall signal; the peak and the minimum
     # then sit within a quarter period of the kinks, and the drop within twice the amplitude
     back = shpb.pullback(*free_end_history(8.0, 3.0, 5.5, ringing=0.45), v_e=2.3)
     assert back["minimum_time_s"] == pytest.approx(30e-6, abs=6.7e-6 / 4)

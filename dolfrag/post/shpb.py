@@ -19,7 +19,7 @@ from dolfrag import analytic
 from dolfrag.post.fragments import breaks_by_time
 
 MEASURE_TIME = 80e-6  # s: the paper measures the blocks 80 µs after the pulse starts
-BLOCK_MASS_SHARE = 0.02  # blocks: fragments with >= 2 % of the mass (docs/hopkinson.md §4)
+BLOCK_MASS_SHARE = 0.02  # blocks: fragments with >= 2 % of the mass (docs/hopkinson.md)
 
 # The values of *Study and simulation of fragmentation phenomena of concrete structures under
 # stuffy explosion* for the tests of Brara et al. 2001 (docs/hopkinson.md): break distances
@@ -36,8 +36,8 @@ PAPER = {
 
 # A minimum of the free end's velocity counts as the pullback's only if the velocity then rises
 # by this share of V_e before it falls lower. In 1D the spall signal's rebound is 2 V_e; the
-# ringing of a 2D bar's lateral modes is far smaller (shpb-be16, h = 7 mm: 0.45 m/s, a fifth
-# of V_e = 2.32 m/s, against a rebound of 2.8 m/s; docs/hopkinson.md)
+# ringing of a 2D bar's lateral modes is far smaller (shpb-be16, h = 7 mm: 0.25 m/s with the
+# bulk viscosity, 0.45 m/s without, against V_e = 2.32 m/s and a rebound of 3.5 m/s)
 PULLBACK_PROMINENCE = 0.5
 
 
