@@ -127,8 +127,9 @@ def test_pullback_is_the_drop_from_the_first_peak_to_the_first_minimum():
     assert back["peak_m_s"] == pytest.approx(8.0, abs=1e-12) and back["peak_time_s"] == pytest.approx(10e-6)
     assert back["pullback_m_s"] == pytest.approx(5.0, abs=1e-12) and back["half_pullback_m_s"] == pytest.approx(2.5)
     assert back["minimum_time_s"] == pytest.approx(30e-6) and back["rebound_m_s"] is None  # no fall after it
-    # a ringing of 0.45 m/s (BE16 without the bulk viscosity) is not a spall signal; the peak and the minimum
-    # then sit within a quarter period of the kinks, and the drop within twice the amplitude
+    # a ringing of 0.45 m/s (BE16 without the bulk viscosity) is not a spall signal; the peak
+    # and the minimum then sit within a quarter period of the kinks, the drop within twice the
+    # amplitude
     back = shpb.pullback(*free_end_history(8.0, 3.0, 5.5, ringing=0.45), v_e=2.3)
     assert back["minimum_time_s"] == pytest.approx(30e-6, abs=6.7e-6 / 4)
     assert back["pullback_m_s"] == pytest.approx(5.0, abs=2 * 0.45)
@@ -243,7 +244,8 @@ def test_be16_gives_the_same_breaks_and_velocities_on_one_and_two_ranks(be16, tm
     # the free end's pullback: the same steps, its velocities to the same bound
     assert one["pullback"]["peak_time_s"] == two["pullback"]["peak_time_s"]
     assert one["pullback"]["minimum_time_s"] == two["pullback"]["minimum_time_s"]
-    assert one["pullback"]["pullback_m_s"] == pytest.approx(two["pullback"]["pullback_m_s"], abs=2 * steps * RTOL * speed)
+    assert one["pullback"]["pullback_m_s"] == pytest.approx(two["pullback"]["pullback_m_s"],
+                                                            abs=2 * steps * RTOL * speed)
     assert one["effective_modulus_Pa"] == pytest.approx(two["effective_modulus_Pa"], rel=1e-12)
 
 

@@ -170,7 +170,8 @@ def criteria_table(rows):
 def c5_table(rows):
     """Markdown lines of C5: the paper's breaks and block velocities, 1D and dolfrag, gaps in %."""
     lines = ["| case | h (mm) | breaks: paper test / paper sim. / 1D / dolfrag free-end edge (mm) | gap to test "
-             "| block velocities at 80 µs: paper / 1D end blocks / dolfrag end blocks (m/s) | gap to 1D |", "|---|---|---|---|---|---|"]
+             "| block velocities at 80 µs: paper / 1D end blocks / dolfrag end blocks (m/s) | gap to 1D |",
+             "|---|---|---|---|---|---|"]
     for r in rows:
         paper = r["paper"]
         test = paper.get("experiment", {}).get("breaks_from_free_end_m", [])
