@@ -16,7 +16,7 @@ def p_wave_modulus(E, nu, hypothesis="plane_strain"):
 
 def series_interface_modulus(M, C_N, spacing):
     """1D estimate of the modulus of a bulk of modulus M (Pa) cut every ``spacing`` (m) by
-    springs C_N (Pa/m) in series: M / (1 + M / (C_N spacing)) (PHYSICS.md §2)."""
+    springs C_N (Pa/m) in series: M / (1 + M / (C_N spacing))."""
     return M / (1 + M / (C_N * spacing))
 
 
@@ -35,7 +35,7 @@ def free_end_arrival_time(length, c, rise):
 def spall_distance(pressure, c, sigma_c, duration, samples=2001):
     """First spall plane (m from the free end) of a compressive pulse p(t) (Pa, a function
     of t >= 0 vectorised over t) reflecting at a free end, 1D, wave speed c (m/s), tensile
-    strength sigma_c (Pa) (PHYSICS.md §3): the smallest s at which the net tension
+    strength sigma_c (Pa) (docs/hopkinson.md): the smallest s at which the net tension
     max_tau [p(tau) - p(tau + 2 s / c)] reaches sigma_c. None if it never does within the
     pulse (``duration``, s). Accurate to about c * duration / (2 samples)."""
     tau = np.linspace(0.0, duration, samples)
@@ -53,7 +53,7 @@ def spall_distance(pressure, c, sigma_c, duration, samples=2001):
 def scab_velocity(pressure, c, rho, delta, start=0.0, samples=2001):
     """Velocity (m/s) of a scab of thickness delta (m) cut by a pulse p(t) (Pa): the momentum
     trapped in it over its mass, (1 / (rho delta)) int_start^{start + 2 delta / c} p(tau) dtau
-    (PHYSICS.md §3). ``start`` (s): the pulse time that opens the window, 0 for a sharp front,
+    (docs/hopkinson.md). ``start`` (s): the pulse time that opens the window, 0 for a sharp front,
     the end of the rise for a ramped one (``bar_spall``)."""
     tau = np.linspace(start, start + 2 * delta / c, samples)
     return float(np.trapz(pressure(tau), tau) / (rho * delta))
@@ -68,7 +68,7 @@ class BarSpall(NamedTuple):
 
     @property
     def relative_velocity(self):
-        """Scab minus rest (m/s): what the seed's block ejection velocity measures in 1D."""
+        """Scab minus rest (m/s): the centre-of-mass velocity difference of the two blocks in 1D."""
         return self.scab_velocity - self.rest_velocity
 
 
@@ -101,7 +101,7 @@ def bar_spall(pressure, c, rho, sigma_c, length, duration, at=None, samples=2001
 
 def triangular_spall_distance(wavelength, sigma_c, sigma_0):
     """Spall plane of a sharp-fronted triangular pulse of peak sigma_0 and spatial length
-    wavelength = c t_d: lambda sigma_c / (2 sigma_0) (m, PHYSICS.md §3)."""
+    wavelength = c t_d: lambda sigma_c / (2 sigma_0) (m)."""
     return wavelength * sigma_c / (2 * sigma_0)
 
 
@@ -111,14 +111,18 @@ def triangular_scab_velocity(sigma_0, sigma_c, rho, c):
 
 
 def ejection_velocity(sigma_c, rho, E):
-    """Relative velocity (m/s) of the two blocks on either side of a 1D spall plane that
-    opens at the tensile strength sigma_c (Pa): sigma_c / sqrt(rho E) = sigma_c / (rho c),
-    the particle-velocity jump of the unloading wave the crack sends out (PHYSICS.md §3,
-    "Why V_e"); rho kg/m^3, E Pa (the bar modulus)."""
+    """V_e = sigma_c / sqrt(rho E) = sigma_c / (rho c) (m/s): the particle-velocity jump that
+    the unloading wave of a 1D spall plane opening at the tensile strength sigma_c (Pa)
+    carries; rho kg/m^3, E Pa (the bar modulus; pass the mesh's effective modulus for the
+    discretisation's value). At a free surface the jump doubles: the free end's velocity
+    drops by 2 V_e from its peak to its first minimum (the pullback, post/shpb.py), so spall
+    experiments read the strength as sigma_spall = 1/2 rho c delta_u_fs (Novikov, Divnov &
+    Ivanov 1966). V_e is not the centre-of-mass velocity difference of the blocks on either
+    side of the plane: that is ``BarSpall.relative_velocity``, set by the pulse's impulse."""
     return sigma_c / np.sqrt(rho * E)
 
 
-# Fragmentation of a bar stretched at a uniform strain rate (PHYSICS.md §4): scales of a
+# Fragmentation of a bar stretched at a uniform strain rate: scales of a
 # linear-softening cohesive law (Camacho & Ortiz 1996; Drugan 2001) and the mean fragment
 # size of three theories, each as s / L0 against the normalised rate eps_dot / eps_dot_0.
 
@@ -155,12 +159,12 @@ def zhou_molinari_ramesh_size(rate):
 
 
 # Single-degree-of-freedom model of a one-way wall strip (Biggs 1964, "Introduction to
-# Structural Dynamics", ch. 5, table 5.1; UFC 3-340-02 ch. 3; PHYSICS.md §7). Everything is
+# Structural Dynamics", ch. 5, table 5.1; UFC 3-340-02 ch. 3). Everything is
 # per metre of wall width: loads and resistances are total forces on the strip (N/m), the
 # pressure being p = F / L.
 
 # Biggs's tabulated factors for a uniformly loaded strip with distributed mass. K_LM is his
-# rounded column, not K_M / K_L (0.41 / 0.53 = 0.774): PHYSICS.md §7's f = 396 Hz uses 0.77.
+# rounded column, not K_M / K_L (0.41 / 0.53 = 0.774); docs/wall.md's f = 396 Hz uses 0.77.
 # The plastic row is the mechanism: one midspan hinge (simple) or three hinges (clamped).
 _TRANSFORMATION_FACTORS = {
     "clamped": {"K_L": 0.53, "K_M": 0.41, "K_LM": 0.77, "K_LM_plastic": 0.66},
@@ -215,11 +219,11 @@ class StripSDOF:
 
 def strip_properties(E, rho, thickness, span, supports, nu=0.0):
     """SDOF properties of a one-way strip of a wall under uniform pressure, per metre of
-    width (Biggs 1964, table 5.1; PHYSICS.md §7).
+    width (Biggs 1964, table 5.1).
 
     E Pa, rho kg/m^3, thickness h m, span L m; supports "clamped" (fixed-fixed) or "simple".
     nu: Poisson's ratio of cylindrical bending, EI = E h^3 / (12 (1 - nu^2)). The default 0
-    gives the beam value EI_g of PHYSICS.md §7; a plane-strain 2D section of the wall (the
+    gives the beam value EI_g; a plane-strain 2D section of the wall (the
     strip cannot contract across its width) bends with the bulk nu (0.2: EI +4 %, f +2 %).
     M = rho h L (kg/m); k = 384 EI / L^3 clamped, 384 EI / (5 L^3) simple (N/m per m);
     f = sqrt(k / (K_LM M)) / (2 pi). Raises ValueError for other supports.
@@ -233,7 +237,7 @@ def strip_properties(E, rho, thickness, span, supports, nu=0.0):
 
 def bending_resistance(M_ps, M_pm, span, supports):
     """Ultimate resistance R_m of a uniformly loaded one-way strip (Biggs 1964, table 5.1;
-    PHYSICS.md §7): the total load per metre of width (N/m) that forms the mechanism,
+    UFC 3-340-02 ch. 3): the total load per metre of width (N/m) that forms the mechanism,
     8 (M_ps + M_pm) / L clamped, 8 M_pm / L simple. M_ps, M_pm: plastic moments at the
     supports and at midspan, N m/m; span L, m. The pressure is R_m / L (Pa)."""
     _check_supports(supports)
@@ -254,7 +258,7 @@ def rebar_plastic_moment(area_per_width, f_y, d, f_c):
 
 
 def sdof_response(props, pressure, t_end, dt=None, resistance=None, K_LM=None):
-    """Midspan deflection history of a strip SDOF from rest (Biggs 1964 ch. 5; PHYSICS.md §7):
+    """Midspan deflection history of a strip SDOF from rest (Biggs 1964 ch. 5):
     K_LM M y'' + R(y) = F(t) = p(t) L.
 
     props StripSDOF; pressure: p(t) in Pa, vectorised over t (s); t_end s.
@@ -329,7 +333,7 @@ def impulsive_elastic_deflection(impulse, K_LM, M, k):
 
 
 def rigid_plastic_impulsive_deflection(impulse, K_LM, M, R_m):
-    """Peak deflection (m) of a rigid-plastic SDOF under a short pulse (PHYSICS.md §7): the
+    """Peak deflection (m) of a rigid-plastic SDOF under a short pulse (Biggs 1964 ch. 5): the
     kinetic energy impulse^2 / (2 K_LM M) is dissipated by R_m,
     y_max = impulse^2 / (2 K_LM M R_m). impulse N s/m, M kg/m, R_m N/m; the same formula holds
     per square metre (Pa s, kg/m^2, Pa)."""

@@ -244,6 +244,8 @@ class Material:
     nu: float = _f("float", bounds=">= 0, < 0.5")               # Poisson's ratio [-], [0, 0.5)
     rho: float = _f("float", bounds="> 0", unit="kg/m^3")       # density [kg/m^3], > 0
     hypothesis: str = _f("str", "plane_strain", choices=HYPOTHESES)  # 2D only, ignored in 3D
+    # artificial bulk viscosity in compression (viscosity.py; imex only: theta damps with theta > 1/2)
+    bulk_viscosity: bool = _f("bool", True)
 
 
 @dataclass(frozen=True)
@@ -491,9 +493,6 @@ def _check(case: Case) -> None:
     if case.time.scheme == "theta" and not _law(law).theta:
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
-    if case.time.scheme == "theta" and law.mu_i:
-        raise CaseError(f"interface.mu_i = {law.mu_i!r} with time.scheme = 'theta': not available yet "
-                        "(the contact pressure it needs comes from the imex star solve); use 'imex' or mu_i = 0")
     if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
         raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
                         f"{law.law!r}), Pa")

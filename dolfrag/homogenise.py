@@ -50,6 +50,31 @@ def uniaxial_strain_modulus(case):
     return case.geometry.length / abs(u[d * right].mean())
 
 
+def bar_modulus(case):
+    """E_eff (Pa) of the case's 2D rectangle bar with its interface springs and its own
+    supports, from a static push: the loaded face (load.boundary, left or right) held along
+    the axis, one of its dofs also across it (no rigid motion), a unit pressure on the
+    opposite (free) face; E_eff = p L / |mean u_x(free face)|. With rollers on the long
+    faces this is uniaxial_strain_modulus; with free long faces, the bar modulus that sets
+    the wave speed of a Hopkinson specimen. Serial on every calling rank (COMM_SELF; gmsh
+    is deterministic: the same mesh a parallel run distributes)."""
+    domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF)
+    space = spaces.create(domain)
+    K = _stiffness_with_springs(case, space, domain)
+    loaded = case.load.boundary
+    free_face = "right" if loaded == "left" else "left"
+    f = loads.unit_pressure_vector(space, domain, free_face).x.array
+    d = space.gdim
+    held = space.boundary_dofs(domain.facet_tags, domain.boundary_tag(loaded))
+    fixed = np.union1d(np.concatenate([d * held, [d * held[0] + 1]]),
+                       supports.constrained_components(space, domain, case.supports))
+    free = np.setdiff1d(np.arange(K.shape[0]), fixed)
+    u = np.zeros(K.shape[0])
+    u[free] = spla.spsolve(K[free][:, free].tocsc(), f[free])
+    end = space.boundary_dofs(domain.facet_tags, domain.boundary_tag(free_face))
+    return case.geometry.length / abs(u[d * end].mean())
+
+
 def _stiffness_with_springs(case, space, domain, stiffness_ratio=None):
     """K + B^T D B (scipy CSR, N/m) of the case's mesh, springs C_N, C_T (Pa/m) of the case,
     or stiffness_ratio * E / h both when given (large: nearly rigid interfaces)."""

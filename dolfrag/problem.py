@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports
+from dolfrag import bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports, viscosity
 from dolfrag.config import CaseError
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -83,6 +83,8 @@ class Problem:
         if case.load.kind == "stretch":  # its ends are supports whose velocity is prescribed
             held = np.union1d(held, np.concatenate(end_components(space, domain)))
         stars = Stars(space, links, held)
+        if case.time.scheme == "imex" and viscosity.applies(case):  # its linear term lowers the stable step
+            bulk_ops.dt_crit *= viscosity.step_factor()
         h, n_steps = _time_step(case, bulk_ops.dt_crit)
         if case.load.kind == "pressure":
             load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)

@@ -32,8 +32,10 @@ domains = []
 build = mesh.build
 
 
-def build_by_rule(*args, **kwargs):  # the runner calls mesh.build: give it the rule
-    domains.append(build(*args, owner_rule=owner_rule, **kwargs))
+def build_by_rule(geometry, size, comm, **kwargs):  # the runner calls mesh.build: give it the rule
+    if comm.size == 1:  # a serial copy (homogenise.bar_modulus's static push): nothing to partition
+        return build(geometry, size, comm, **kwargs)
+    domains.append(build(geometry, size, comm, owner_rule=owner_rule, **kwargs))
     return domains[-1]
 
 

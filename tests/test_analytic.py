@@ -1,4 +1,4 @@
-"""Closed forms of analytic.py against each other and against PHYSICS.md's numbers."""
+"""Closed forms of analytic.py against each other, an independent 1D bar and published numbers."""
 import dataclasses
 
 import numpy as np
@@ -7,8 +7,8 @@ import pytest
 from dolfrag import analytic, loads
 
 
-def test_p_wave_speed_of_concrete_matches_physics_md():
-    # PHYSICS.md §3: E = 35 GPa, rho = 2350 -> bar speed c = 3859 m/s (E alone, 1D)
+def test_bar_wave_speed_of_concrete_is_3859_m_s():
+    # docs/hopkinson.md: E = 35 GPa, rho = 2350 -> bar speed c = 3859 m/s (E alone, 1D)
     assert analytic.wave_speed(35e9, 2350) == pytest.approx(3859, abs=1)
 
 
@@ -26,7 +26,7 @@ def test_general_spall_criterion_reduces_to_the_triangular_closed_forms(sigma_0)
 
 
 def test_a_rise_time_moves_the_spall_by_the_unloading_rate_only():
-    # PHYSICS.md §3: a ramped pulse spalls at c sigma_c / (2 |dp/dt of the tail|)
+    # a ramped pulse spalls at c sigma_c / (2 |dp/dt of the tail|) (docs/hopkinson.md)
     c, sigma_c = 3700.0, 5e6
     pulse = loads.triangular(10e6, 5e-6, 25e-6)  # tail: 10 MPa over 20 us
     expected = c * sigma_c / (2 * 10e6 / 20e-6)
@@ -85,13 +85,13 @@ def test_bar_spall_matches_a_finite_difference_bar(sigma_0, sigma_c, duration):
 
 
 def test_block_velocities_of_be16_differ_from_the_crack_speed_jump():
-    # The seed's ejection velocity is the centre-of-mass velocity difference of the blocks.
-    # In 1D that is scab minus rest, 3.44 m/s for BE16 (brittle_bar: 5.62 - 2.19), not the
-    # crack's sigma_c / (rho c) = 2.32 m/s the issue compares with (docs/hopkinson.md §3)
+    # The blocks' centre-of-mass velocity difference is, in 1D, scab minus rest: 3.44 m/s for
+    # BE16 (brittle_bar: 5.62 - 2.19), not the crack's sigma_c / (rho c) = 2.32 m/s
+    # (docs/hopkinson.md)
     E, rho = 35e9, 2350.0
     closed = analytic.bar_spall(loads.triangular(36e6, 10e-6, 58.98e-6), analytic.wave_speed(E, rho), rho,
                                 21e6, 0.12, 58.98e-6)
-    # the scab's velocity is (2 sigma_0 - sigma_c) / (rho c) on a linear tail (PHYSICS.md §3).
+    # the scab's velocity is (2 sigma_0 - sigma_c) / (rho c) on a linear tail.
     # The window opens at a sample of 2001 over the 59 us pulse, up to 29 ns after the rise
     # ends: 0.735 MPa/us x 29 ns on a mean 25.5 MPa is <= 8.4e-4 relative (measured -7.7e-4)
     assert closed.scab_velocity == pytest.approx(analytic.triangular_scab_velocity(36e6, 21e6, rho,
@@ -100,7 +100,7 @@ def test_block_velocities_of_be16_differ_from_the_crack_speed_jump():
     assert closed.relative_velocity > 1.25 * analytic.ejection_velocity(21e6, rho, E)
 
 
-# SDOF of a one-way wall strip (PHYSICS.md §7), per metre of width
+# SDOF of a one-way wall strip (Biggs 1964), per metre of width
 WALL = analytic.strip_properties(E=35e9, rho=2350, thickness=0.1, span=1.0, supports="clamped")
 
 
@@ -109,8 +109,8 @@ def constant(p):
     return lambda t: np.full_like(t, p)
 
 
-def test_strip_properties_reproduce_the_physics_md_wall():
-    # PHYSICS.md §7 prints 3 digits: M = 235 kg/m^2, EI_g = 2.92 MN m^2/m, k = 1.12e9, f = 396 Hz
+def test_strip_properties_of_the_wall():
+    # the wall of docs/wall.md, 3 digits: M = 235 kg/m^2, EI_g = 2.92 MN m^2/m, k = 1.12e9, f = 396 Hz
     assert WALL.M == pytest.approx(235, abs=0.5)
     assert WALL.EI == pytest.approx(2.92e6, abs=0.005e6)
     assert WALL.k == pytest.approx(1.12e9, abs=0.005e9)
@@ -193,7 +193,7 @@ def test_rigid_plastic_impulsive_peak_is_I2_over_2_KLM_M_Rm():
 
 
 def test_mechanism_accelerates_with_the_plastic_load_mass_factor():
-    # PHYSICS.md §7: past R_m, v^2 = 2 (F - R_m) y / (K_LM M), i.e. y = (F - R_m) t^2 / (2 K_LM M)
+    # past R_m, v^2 = 2 (F - R_m) y / (K_LM M), i.e. y = (F - R_m) t^2 / (2 K_LM M)
     # with K_LM = 0.66; the elastic 0.77 would be 14 % off
     stiff = dataclasses.replace(WALL, k=1e4 * WALL.k)
     R_m = 2.7e5
@@ -206,8 +206,8 @@ def test_mechanism_accelerates_with_the_plastic_load_mass_factor():
     assert y[-1] == pytest.approx(expected, rel=4 * t_y / t_end)
 
 
-def test_clamped_wall_resistance_matches_physics_md():
-    # PHYSICS.md §7: Ø10/150 each face, f_y = 500 MPa, d = 70 mm -> M_p ~ 17 kN m/m (2 digits);
+def test_clamped_wall_resistance_from_its_bars():
+    # the wall's bars: Ø10/150 each face, f_y = 500 MPa, d = 70 mm -> M_p ~ 17 kN m/m (2 digits);
     # f_c = 40 MPa as in §5
     A_s = np.pi * 0.010**2 / 4 / 0.150
     M_p = analytic.rebar_plastic_moment(A_s, 500e6, 0.070, 40e6)
@@ -220,15 +220,15 @@ def test_clamped_wall_resistance_matches_physics_md():
 @pytest.mark.parametrize("rate, zmr, grady, gc", [(0.1, 2.28, 13.4, 1.99), (1, 0.818, 2.88, 1.64),
                                                   (10, 0.206, 0.621, 0.557), (100, 0.0459, 0.134, 0.131),
                                                   (1000, 0.0100, 0.0288, 0.0287)])
-def test_fragment_sizes_match_the_table_of_physics_md_4(rate, zmr, grady, gc):
-    # PHYSICS.md §4's table, printed to 3 significant digits: within half a unit of the last
+def test_fragment_sizes_match_the_printed_table(rate, zmr, grady, gc):
+    # a table of the three theories printed to 3 significant digits: within half a unit of the last
     for size, printed in ((analytic.zhou_molinari_ramesh_size, zmr), (analytic.grady_size, grady),
                           (analytic.glenn_chudnovsky_size, gc)):
         assert size(rate) == pytest.approx(printed, rel=5e-3, abs=5e-5)
 
 
-def test_fragmentation_scales_of_the_zmr_material_match_physics_md_4():
-    # PHYSICS.md §4: E = 275 GPa, rho = 2750, sigma_c = 300 MPa, G_c = 100 N/m ->
+def test_fragmentation_scales_of_the_zmr_material():
+    # Zhou, Molinari & Ramesh's material: E = 275 GPa, rho = 2750, sigma_c = 300 MPa, G_c = 100 N/m ->
     # L0 = 0.306 mm, eps_dot_0 = 3.57e4 1/s (3 digits)
     E, rho, sigma_c, G_c = 275e9, 2750.0, 300e6, 100.0
     assert analytic.fragmentation_length(E, G_c, sigma_c) == pytest.approx(0.306e-3, rel=2e-3)

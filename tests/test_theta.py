@@ -22,9 +22,10 @@ INTACT_RCCM = ["interface.law=rccm", "interface.sigma_c=1e9"]  # nothing breaks:
 
 
 def build(overrides, h_factor=1.0, theta=0.5, **options):
-    """A Theta on the sound-bar case (serial), at h_factor times the imex step of the problem;
-    options: fields of NewtonOptions."""
-    problem = Problem.build(load_case("sound-bar", overrides), MPI.COMM_SELF)
+    """A Theta on the sound-bar case (serial), at h_factor times the imex step of the problem
+    (of the bulk alone: the bulk viscosity's step factor is imex's); options: fields of
+    NewtonOptions."""
+    problem = Problem.build(load_case("sound-bar", ["material.bulk_viscosity=false", *overrides]), MPI.COMM_SELF)
     integ = Theta.from_problem(problem, h=h_factor * problem.h, theta=theta, options=NewtonOptions(**options))
     return integ, int(np.ceil(problem.case.time.end / integ.h)), problem.dt_crit
 

@@ -1,5 +1,5 @@
 """The ``wall`` block of summary.json: a reinforced concrete wall section in plane strain, or
-a slab in 3D (PHYSICS.md §7). The span runs along ``span_axis`` from 0 to L, with supports at
+a slab in 3D (docs/wall.md). The span runs along ``span_axis`` from 0 to L, with supports at
 x = 0 and x = L; a slab spans two axes (``span_axis`` a tuple, ``span`` one length per axis,
 supported on its four edges). The thickness runs along ``thickness_axis`` from 0 to H. The
 pressure acts on the loaded face; the free face is the opposite one.
@@ -45,6 +45,10 @@ CRACK_LINK_CELLS = 2.0
 # A crack reaches a face when it has a broken link on the face itself: face vertices lie on it
 # up to round-off (and links.csv's 9 digits), and the next vertex inwards is a cell away.
 FACE_TOL = 1e-6  # relative to H
+# A scab is cut off the free face by a crack parallel to it: a layer at least SCAB_ASPECT times
+# as wide (along every span axis) as it is deep. A wedge cut by cracks inclined at 45 degrees to
+# the face is at most twice as wide as deep; 3 admits cracks within 34 degrees of the face.
+SCAB_ASPECT = 3.0
 SUPPORT_SHARE = 0.15  # support zones: x < 0.15 L and x > 0.85 L (on any span axis)
 MIDSPAN_SHARE = 0.3  # midspan zone: |x - L/2| < 0.15 L (on every span axis)
 
@@ -75,14 +79,17 @@ def outward(frags, free_face, axis, main=None):
 
 
 def scab(frags, free_face, axis, thickness, h, main=None):
-    """The scab: the pieces that came off the free face, or None if there are none.
+    """The scab: the pieces cut off the free face by a crack parallel to it, or None if there
+    are none.
 
     A scab piece is a fragment that is not the main body (``main``, by default the heaviest
     fragment). Its bbox reaches the free face (coordinate ``free_face`` on ``axis``, m), to
     within TOUCH_SHARE * h (h the mesh size, m); the test is one-sided, so pieces that have
     already flown off still count. The piece must also be thinner than the wall
-    (``thickness`` H, m) by more than that tolerance. Pieces through the whole thickness, like
-    a central panel torn loose at its supports, are panels, not scabs.
+    (``thickness`` H, m) by more than that tolerance: pieces through the whole thickness, like
+    a central panel torn loose at its supports, are panels, not scabs. And it must be a layer,
+    at least SCAB_ASPECT times as wide along every span axis as it is deep: a wedge cut off a
+    corner by inclined cracks (at a clamped end, say) is no scab.
 
     Returns a dict:
     thickness_m: the bbox extent along ``axis`` of the thickest piece, i.e. the deepest
@@ -98,12 +105,13 @@ def scab(frags, free_face, axis, thickness, h, main=None):
     tol = TOUCH_SHARE * h
     outer = np.where(sign > 0, frags.bbox_max[:, axis], -frags.bbox_min[:, axis])
     extent = frags.bbox_max[:, axis] - frags.bbox_min[:, axis]
-    is_scab = (outer >= sign * free_face - tol) & (extent < thickness - tol)
+    span_axes = [a for a in range(frags.bbox_min.shape[1]) if a != axis]
+    footprint = np.min(frags.bbox_max[:, span_axes] - frags.bbox_min[:, span_axes], axis=1)
+    is_scab = (outer >= sign * free_face - tol) & (extent < thickness - tol) & (footprint >= SCAB_ASPECT * extent)
     is_scab[main] = False
     pieces = np.flatnonzero(is_scab)
     if not pieces.size:
         return None
-    span_axes = [a for a in range(frags.bbox_min.shape[1]) if a != axis]
     mass = frags.mass[pieces].sum()
     return {"thickness_m": float(extent[pieces].max()),
             "mass_kg": float(mass),
@@ -313,7 +321,7 @@ def wall_block(frags, x_link, weight, damage, break_time, t, w, rebar_force, wal
 
 
 def estimates(pressure, end, c, rho, E, sigma_c, thickness, span, supports, nu):
-    """The closed-form checks of a wall run (PHYSICS.md §3, §7), JSON-ready.
+    """The closed-form checks of a wall run (docs/hopkinson.md, docs/wall.md), JSON-ready.
 
     pressure: p(t) (Pa) on the loaded face, over [0, end] (s); c (m/s) the P-wave speed of
     the estimate; rho (kg/m^3), E (Pa), nu (-) the concrete's; sigma_c (Pa) its tensile

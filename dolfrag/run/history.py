@@ -4,8 +4,8 @@ import numpy as np
 from mpi4py import MPI
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
-                  "D_numerical_J", "D_rebar_plastic_J", "W_external_J", "balance_error_J"]
-ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic",
+                  "D_numerical_J", "D_rebar_plastic_J", "D_viscous_J", "W_external_J", "balance_error_J"]
+ENERGY_FIELDS = ["kinetic", "bulk", "interface", "rebar", "damage", "contact", "numerical", "plastic", "viscous",
                  "external_work", "balance_error"]
 
 

@@ -20,20 +20,22 @@ class Energies:
     numerical: float = 0.0  # dissipated by the time scheme itself (theta > 1/2; 0 for imex)
     rebar: float = 0.0  # elastic energy of the bars
     plastic: float = 0.0  # dissipated by the bars' yielding
+    viscous: float = 0.0  # dissipated by the artificial bulk viscosity (viscosity.py)
 
     @property
     def balance_error(self):
         return (self.kinetic + self.bulk + self.interface + self.damage + self.contact + self.numerical
-                + self.rebar + self.plastic - self.external_work)
+                + self.rebar + self.plastic + self.viscous - self.external_work)
 
 
 def global_energies(comm, kinetic, bulk, interface, damage, contact, external_work, broken_links, numerical=0.0,
-                    rebar=0.0, plastic=0.0):
+                    rebar=0.0, plastic=0.0, viscous=0.0):
     """Energies summed over the ranks from this rank's shares (J; broken_links a count).
     Collective: one reduction."""
     total = comm.allreduce(np.array([kinetic, bulk, interface, damage, contact, external_work, broken_links,
-                                     numerical, rebar, plastic]), op=MPI.SUM)
-    return Energies(*total[:6], int(total[6]), numerical=total[7], rebar=total[8], plastic=total[9])
+                                     numerical, rebar, plastic, viscous]), op=MPI.SUM)
+    return Energies(*total[:6], int(total[6]), numerical=total[7], rebar=total[8], plastic=total[9],
+                    viscous=total[10])
 
 
 def reaction_work(r_N, r_T, dg, shift, mu, cohesion_T):

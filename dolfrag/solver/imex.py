@@ -23,7 +23,7 @@ increments to their owners.
 """
 import numpy as np
 
-from dolfrag import compat
+from dolfrag import compat, viscosity as bulk_viscosity
 from dolfrag.solver.energy import global_energies
 from dolfrag.solver.semismooth import StarNewton, step_stiffness
 from dolfrag.timing import PhaseTimer
@@ -77,14 +77,15 @@ class Imex:
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
     nodal forces per pascal; pressure: p(t) in Pa; h: time step (s); rebars: rebar.Rebars
     or None. The bars are explicit, like the bulk: their forces need every ghost
-    displacement, so with bars each step ends with a forward scatter of u.
+    displacement, so with bars each step ends with a forward scatter of u. viscosity:
+    viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}).
     """
 
     STATE = ("u", "v", "t", "n", "work", "_g", "_g_before", "_u_n")  # what a checkpoint keeps
 
-    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None):
+    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None, viscosity=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
-        self.rebars = rebars
+        self.rebars, self.viscosity = rebars, viscosity
         self.model = step.model
         self.pressure, self.h = pressure, h
         V = space.V
@@ -118,7 +119,8 @@ class Imex:
         model = problem.interface_model(h, step_stiffness(problem.links, m, h, problem.space.gdim))
         solver = ElasticSprings if problem.law.springs else step or StarNewton
         return cls(problem.space, problem.bulk, problem.jump, solver(problem.stars, problem.jump, model, m, h),
-                   problem.load if load is None else load, pressure or problem.pressure, h, rebars=problem.rebars)
+                   problem.load if load is None else load, pressure or problem.pressure, h, rebars=problem.rebars,
+                   viscosity=bulk_viscosity.build(problem.space, problem.domain, problem.case))
 
     def impose(self, comps, velocity):
         """Prescribe the velocity of supported components from now on: ``velocity(t)``
@@ -153,6 +155,8 @@ class Imex:
             np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
+        if self.viscosity is not None:
+            self.viscosity.add_force(v, f)
         timer.lap("bulk")
         compat.scatter_forward(self.f)
         timer.lap("communication")
@@ -176,6 +180,8 @@ class Imex:
         ghosts = self.star_ghosts
         v[ghosts] += dv[ghosts]
         u[ghosts] += h * v[ghosts]
+        if self.viscosity is not None:
+            self.viscosity.book(v, h)
         timer.lap("update")
         if self.rebars is not None:
             compat.scatter_forward(self.u)
@@ -204,4 +210,5 @@ class Imex:
                                weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                                np.count_nonzero(self.model.broken()),
                                rebar=bars.stored_energy(self._u_n, self.u.x.array) if bars else 0.0,
-                               plastic=bars.dissipated if bars else 0.0)
+                               plastic=bars.dissipated if bars else 0.0,
+                               viscous=self.viscosity.dissipated if self.viscosity else 0.0)

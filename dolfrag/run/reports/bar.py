@@ -1,6 +1,6 @@
 """A bar loaded on one end (Hopkinson bar, spall): breaks from the free end, and the
 ``shpb`` block at post.shpb.MEASURE_TIME (or the end of a shorter run)."""
-from dolfrag import analytic, loads
+from dolfrag import analytic, homogenise, loads
 from dolfrag.post import shpb
 from dolfrag.post.fragments import breaks_by_time
 from dolfrag.run.fragment_times import FragmentTimes
@@ -13,8 +13,17 @@ def free_end(case):
     return case.geometry.length if case.load.boundary == "left" else 0.0
 
 
+def free_end_probe(case, space, domain):
+    """shpb.FreeEndProbe of the face opposite the loaded one of a bar (``free_end``)."""
+    face = "right" if case.load.boundary == "left" else "left"
+    dofs = space.boundary_dofs(domain.facet_tags, domain.boundary_tag(face))
+    return shpb.FreeEndProbe(space.gdim * dofs[dofs < space.n_owned_dofs], 1.0 if face == "right" else -1.0)
+
+
 class BarReport(FragmentTimes):
-    """Measures the fragments at MEASURE_TIME when the run reaches it."""
+    """Measures the fragments at MEASURE_TIME when the run reaches it, and the free end's
+    velocity every step (its pullback)."""
+    STATE = (*FragmentTimes.STATE, "probe")
 
     @staticmethod
     def applies(case):
@@ -23,6 +32,11 @@ class BarReport(FragmentTimes):
     def __init__(self, ctx):
         super().__init__(ctx, {shpb.MEASURE_TIME} if ctx.case.time.end >= shpb.MEASURE_TIME else set())
         self.free_end = free_end(ctx.case)
+        self.probe = free_end_probe(ctx.case, ctx.space, ctx.problem.domain)
+
+    def observe(self, step):
+        super().observe(step)
+        self.probe.record(self.ctx.integ.energy_time, self.ctx.integ.v.x.array)
 
     def summarise(self, summary, final):
         case, integ = self.ctx.case, self.ctx.integ
@@ -34,7 +48,9 @@ class BarReport(FragmentTimes):
             loads.signal(case.load), analytic.wave_speed(E, rho), rho, sigma_c, case.geometry.length,
             loads.signal_end(case.load), at=measured_at)
         summary["shpb"] = shpb.shpb_block(final.fragments, at_measure, measured_at, self.free_end, sigma_c, rho, E,
-                                          case.name, closed_form=closed)
+                                          case.name, closed_form=closed,
+                                          free_end_velocity=self.probe.series(self.ctx.comm),
+                                          E_eff=homogenise.bar_modulus(case))
 
     def figures(self, folder, final):
         pass  # the common figures show it

@@ -284,7 +284,7 @@ class Theta:
         self.work += step.p_theta * self.residual.load_vector @ du[own]
         if self.contact:
             g = point.g_end
-            state = self.model.cohesion(g[:, 0], g[:, 1:], step.state_n).state
+            state = self.model.cohesion(g[:, 0], g[:, 1:], step.state_n, r[:, 0]).state
             every = np.arange(len(w))[:, None]
             self.model.store(every, state[:, None], np.ones_like(every, dtype=bool), g[:, :1], g[:, None, 1:])
             # split as the star Newton does: contact and friction dissipate, the cohesive

@@ -189,7 +189,7 @@ class ThetaResidual:
             closed = point.jac.dN_drN == 0
             point.status.append(status)
             g_theta = np.column_stack([np.where(closed, np.abs(g_theta[:, 0]), g_theta[:, 0]), g_theta[:, 1:]])
-        law = point.law = self.cohesion(g_theta, step.state_n)
+        law = point.law = self.cohesion(g_theta, step.state_n, r[:, 0])
         t = np.column_stack([law.r_N, law.r_T]) - r  # Pa, tension positive
         f = self.force.x.array
         f[:] = self.jump.BT @ (self.w[:, None] * np.einsum("lai,la->li", self.frame, t)).ravel()
@@ -213,10 +213,12 @@ class ThetaResidual:
         point.converged = error <= self.rtol * scale
         return point
 
-    def cohesion(self, g, state_n):
-        """models.Cohesion at link-frame jumps g (n, d): the model's, or the elastic springs'."""
+    def cohesion(self, g, state_n, r_N=None):
+        """models.Cohesion at link-frame jumps g (n, d): the model's, or the elastic springs'.
+        r_N (n,) Pa: the contact pressure of the same iterate (>= 0 in compression), for
+        the law's internal friction."""
         if self.contact:
-            return self.model.cohesion(g[:, 0], g[:, 1:], state_n)
+            return self.model.cohesion(g[:, 0], g[:, 1:], state_n, r_N)
         n, m = g.shape[0], self.d - 1
         r_N, r_T, k_N, k_T = laws.elastic(g[:, 0], g[:, 1:], self.model.C_N, self.model.C_T)
         zeros = np.zeros((n, m))
