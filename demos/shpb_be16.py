@@ -95,6 +95,8 @@ if MPI.COMM_WORLD.rank == 0:
     print(f"   block velocities at 80 us: paper ~{paper['simulation']['block_velocities_m_s'][0]:.1f} m/s, "
           f"1D end blocks {table.ms(row['relative_1d_m_s'])} m/s, dolfrag end blocks {table.ms(ends)} m/s "
           "(the pulse's impulse is not published: reported, not judged)")
+    print(f"Energy balance error: {row['balance_error_relative']:.1e} of the work (the bulk viscosity's "
+          "dissipation included)")
     print(f"figures: {out}/figures/velocity_x.png (exploded, coloured by v_x), load.png")
 # -
 

@@ -12,7 +12,7 @@ is a lower bound.
 import math
 import sys
 
-from dolfrag import analytic
+from dolfrag import analytic, viscosity
 from dolfrag.config import CaseError
 
 CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)
@@ -55,7 +55,8 @@ def steps_estimate(case):
         return time.end / (time.dt or accuracy_time_step(case.load, time.end))
     c_p = max(math.sqrt(analytic.p_wave_modulus(m.E, m.nu, case.material.hypothesis) / m.rho)
               for m in (case.material, *case.materials.values()))
-    return time.end / (time.cfl * STEP_PER_H[case.geometry.tdim] * case.mesh.size / c_p)
+    factor = viscosity.step_factor() if viscosity.applies(case) else 1.0  # it lowers the stable step
+    return time.end / (time.cfl * factor * STEP_PER_H[case.geometry.tdim] * case.mesh.size / c_p)
 
 
 def check(case):

@@ -123,7 +123,8 @@ def measure(name, h, out, overrides, comm):
             "V_e_eff_m_s": shpb["analytic_ejection_velocity_effective_m_s"],
             "rebound_m_s": (shpb["pullback"] or {}).get("rebound_m_s"),
             "ejection_m_s": shpb["ejection_velocities_m_s"], "relative_1d_m_s": one_d["relative_velocity_m_s"],
-            "paper": shpb.get("paper", {}), "wall_s": summary["wall_time_s"]}
+            "paper": shpb.get("paper", {}), "wall_s": summary["wall_time_s"],
+            "balance_error_relative": summary["balance_error_relative"]}
 
 
 def judge_convergence(rows):
