@@ -94,19 +94,6 @@ def pullback(t, v, v_e, prominence=PULLBACK_PROMINENCE):
             "rebound_time_s": None if high is None else float(t[high])}
 
 
-def tensile_strength(interface, C_N):
-    """Peak tensile traction (Pa) of the law of ``interface`` (config.Interface) with normal
-    stiffness C_N (Pa/m): sigma_c, sqrt(C_N w) for RCCM given w, R_c for ``threshold``;
-    None for ``elastic``."""
-    if interface.law == "elastic":
-        return None
-    if interface.law == "threshold":
-        return interface.R_c
-    if interface.sigma_c is None:
-        return float(np.sqrt(C_N * interface.w))
-    return interface.sigma_c
-
-
 def blocks(frags, free_end, axis=0, share=BLOCK_MASS_SHARE):
     """Indices (into ``frags``) of the fragments with at least ``share`` of the total mass,
     nearest to the free end first (by centroid); free_end (m) is its coordinate on ``axis``."""
