@@ -26,7 +26,8 @@ A step starts from the affine prediction of each star's last piece (solver/activ
 most stars are solved by it, checked by one residual evaluation, and only the stars whose
 piece or damage changed pay for a Jacobian. The others start from zero.
 
-Each star stops on its own. A star that Newton has not solved after FALLBACK iterations
+Each star stops on its own. A star its prediction started and Newton has not solved after
+RESTART iterations starts again from zero. A star that Newton has not solved after FALLBACK iterations
 (active-set wandering, measured on rigid laws with friction) is handed to projected
 Gauss-Seidel sweeps over its links, still exact and local; a star still above STALL after
 max_iterations is given the best iterate it reached, accepted within GIVE_UP (and counted),
@@ -64,7 +65,7 @@ def spring_coefficients(model, state, gdim):
     law = model.springs(np.ones(n), np.zeros((n, gdim - 1)), state)
     k_N = np.broadcast_to(law.dr_N_dg_N, (n,))
     k_T = np.broadcast_to(law.dr_T_dg_T, (n, gdim - 1, gdim - 1))[:, 0, 0]
-    return np.ascontiguousarray(k_N, dtype=float), np.ascontiguousarray(k_T, dtype=float)
+    return np.array(k_N, dtype=float), np.array(k_T, dtype=float)  # writable copies: the kernel's cached types
 
 
 class StarLayout:
