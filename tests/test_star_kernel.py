@@ -97,7 +97,7 @@ def _evaluate(star, x, r, freeze=True):
     q, L, d = star["q"], star["L"], star["d"]
     out = dict(Bx=np.empty((L, d)), gbar=np.empty((L, d)), slip=np.empty((L, d)), branch=np.empty((L, 5)),
                e=np.zeros((L, max(d - 1, 1))), force=np.empty(q), R=np.empty(q + L * d), reaction=np.empty(q),
-               code=np.empty(L, np.int8))
+               code=np.empty(L, np.int8), scratch=np.empty(2 * d))
     scaled = star_kernel._evaluate(**star, x=x, r=r, floor_m=0.0, floor_c=0.0, freeze=freeze, **out)
     return out["R"], *scaled, out["gbar"], out["code"], out["branch"], out["e"]
 
@@ -176,7 +176,7 @@ def test_star_jacobian_is_the_derivative_of_the_residual_on_each_piece(d):
         J = np.empty((N, N))
         star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
                               star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
-                              code, branch, e, J)
+                              code, branch, e, J, np.empty(3 * d * d))
         eps = 1e-6
         FD = np.empty((N, N))
         crossed = False

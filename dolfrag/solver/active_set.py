@@ -63,17 +63,14 @@ def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, 
     for l in range(L):
         cd = code[l]
         contact = (cd & CONTACT) > 0
-        t0 = np.empty(d)
-        t0[0] = spring_normal_tangent(cd, k_N[l]) * g_n[l, 0]
+        t0_N = spring_normal_tangent(cd, k_N[l]) * g_n[l, 0]
         if contact:  # the law's normal traction at the jump contact pins
-            t0[0] += k_N[l] * max(0.75 * g_n[l, 0] - 0.25 * dg[l, 0], 0.0)
-        for i in range(1, d):
-            t0[i] = k_T[l] * g_n[l, i]
+            t0_N += k_N[l] * max(0.75 * g_n[l, 0] - 0.25 * dg[l, 0], 0.0)
         a, b = slot_A[l], slot_B[l]
         for j in range(d):
-            F = 0.0
-            for i in range(d):
-                F += frame[l, i, j] * t0[i]
+            F = frame[l, 0, j] * t0_N
+            for i in range(1, d):
+                F += frame[l, i, j] * k_T[l] * g_n[l, i]
             F *= h * w[l]
             c[b * d + j] += F
             c[a * d + j] -= F

@@ -211,11 +211,14 @@ class StarNewton:
         trial = self.model.trial_state(gbar[:, 0], gbar[:, 1:], before, self._r[:, 0])
         self.model.store(lay.links, trial, np.ones(len(before), dtype=bool), g_mid[:, 0], g_mid[:, 1:])
         after = self.model.state_at(self._all_links)
-        damaged = np.bincount(lay.star_of_link, weights=after[lay.links] != before, minlength=lay.n_stars) > 0
-        renew = np.flatnonzero(~lay.cached | damaged)
-        if len(renew):  # the Jacobians of the converged pieces, with the damage after the step
+        changed = after[lay.links] != before
+        renew = ~lay.cached
+        if changed.any():  # the stars whose damage changed, with the friction and springs it gives
+            renew |= np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
             per_link = self._link_data(after, self.model.friction(after), self.model.shift(after),
                                        self.model.shear_cohesion(after))
+        renew = np.flatnonzero(renew)
+        if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
                                     *lay.cache())
 

@@ -158,13 +158,14 @@ def _ratio(a, scale):
 
 @njit(cache=True)
 def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
-              k_T, h, x, r, floor_m, floor_c, freeze, Bx, gbar, slip, branch, e, force, R, reaction, code):
+              k_T, h, x, r, floor_m, floor_c, freeze, Bx, gbar, slip, branch, e, force, R, reaction, code, scratch):
     """The star's residual R (q + L d) at (x (q), r (L, d)), in the unknowns' order, and its
     scaled parts (momentum, contact), returned. Per link it leaves B x in the link frame
     (Bx), the jump the springs are read at (gbar), the end-of-step slip h B (v_- + x)
     (slip), the branches of the projections (branch, e: slip direction) and the piece
     (code); per component the interface force h B^T w (t - r) (force) and the reactions
-    of prescribed components (reaction, N). freeze: frozen links take FROZEN rho.
+    of prescribed components (reaction, N). freeze: frozen links take FROZEN rho;
+    scratch (>= 2 d,) workspace.
 
         R_m = m x - h f + h B^T w (t(gbar) - r)       (0 on prescribed components)
         phi = Alart-Curnier of Signorini-Coulomb on the cone shifted by the cohesion,
@@ -179,8 +180,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
     for i in range(q):
         force[i] = 0.0
     max_phi, max_r, max_terms = 0.0, 0.0, 0.0
-    jump = np.empty(d)
-    t = np.empty(d)
+    jump, t = scratch[:d], scratch[d:2 * d]
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         for j in range(d):
@@ -248,18 +248,18 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
 
 
 @njit(cache=True)
-def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J):
+def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch):
     """Generalised Jacobian J (N, N) of (R_m, phi) at the point _evaluate last saw (its
     branch, e and code). On frozen links identity rows (see FROZEN); on prescribed
     components identity rows and zero columns; sticking links get REGULARISATION on
-    their reaction diagonal."""
+    their reaction diagonal. scratch (>= 3 d^2,) workspace."""
     N = q + L * d
     J[:, :] = 0.0
     for i in range(q):
         J[i, i] = m[i]
-    RtDR = np.empty((d, d))
-    JgR = np.empty((d, d))
-    P = np.empty((d, d))
+    RtDR = scratch[:d * d].reshape((d, d))
+    JgR = scratch[d * d:2 * d * d].reshape((d, d))
+    P = scratch[2 * d * d:3 * d * d].reshape((d, d))
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         R = frame[l]
@@ -503,8 +503,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     R, delta, direction = np.empty(N_max), np.empty(N_max), np.empty(N_max)
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
-    J_work = np.empty(N_max * N_max)
-    piv_work = np.empty(N_max, dtype=np.int64)
+    scratch = np.empty(3 * d * d)
     for s in range(n_stars):
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -547,7 +546,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         for iteration in range(1, max_iterations + 2):
             scaled_m, scaled_c = _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs,
                                            h, xs, rs, floor_m, floor_c, True, Bx, gbar, slip, branch, e, force, R,
-                                           react, code)
+                                           react, code, scratch)
             scaled = max(scaled_m, scaled_c)
             last = iteration > max_iterations  # the best iterate, evaluated once more
             if iteration < FALLBACK:
@@ -623,7 +622,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             # on its cached piece, a prediction only short of REGULARISATION is finished by
             # the stored factors; elsewhere a fresh Jacobian, which replaces them
             if not (iteration == 1 and on_piece):
-                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU)
+                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU, scratch)
                 lu_factor(LU, piv)
                 scode[:] = code[:L]
                 cached[s] = _cacheable(L, d, fz, code)
@@ -656,6 +655,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
     branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
     code = np.empty(L_max, dtype=np.int8)
     R = np.empty(N_max)
+    scratch = np.empty(3 * d * d)
     for s in stars:
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -668,9 +668,9 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
         mus, kNs, kTs = mu[l0:l1], k_N[l0:l1], k_T[l0:l1]
         _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, rhs[p0:p1], g_n[l0:l1], dg[l0:l1], mus, shift[l0:l1],
                   cohesion_T[l0:l1], kNs, kTs, h, x[p0:p1], r[l0:l1], 0.0, 0.0, False, Bx, gbar, slip, branch, e,
-                  force, R, react, code)
+                  force, R, react, code, scratch)
         LU, piv = _store_factors(factors[fac_off[s]:], pivots[piv_off[s]:], N)
-        _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU)
+        _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU, scratch)
         lu_factor(LU, piv)
         codes[l0:l1] = code[:L]
         cached[s] = _cacheable(L, d, fz, code)
