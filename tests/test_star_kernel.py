@@ -215,6 +215,32 @@ def test_lu_solves_like_lapack():
         assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(A) * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
+    rng = np.random.default_rng(21 + d)
+    apart = 0
+    for trial in range(40):
+        star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
+        star["frozen"] = rng.random(star["L"]) < 0.15
+        q, L = star["q"], star["L"]
+        N = q + L * d
+        x, r = _unknowns(star, rng.normal(size=N) * np.concatenate([~star["fixed"], np.ones(L * d)]))
+        R, *_, code, branch, e = _evaluate(star, x, r)
+        J = np.empty((N, N))
+        star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
+                              star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
+                              code, branch, e, J, np.empty(3 * d * d))
+        store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
+        star_kernel.factor_star(J.copy(), store, index)
+        y = R.copy()
+        star_kernel.solve_star(store, index, y, np.empty(N))
+        apart += N - index[0]
+        expected = np.linalg.solve(J, R)
+        # both backward stable on the same matrix: agreement to condition x round-off
+        assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
+    assert apart > 40 * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
+
+
 @pytest.mark.parametrize("law", ["rccm", "linear_softening"])
 def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, monkeypatch):
     # sound-bar with friction: the pulse reflects at the free end as tension and breaks links

@@ -108,7 +108,7 @@ class StarLayout:
         self.frozen = np.ascontiguousarray(held[links.dof_A[self.links]] & held[links.dof_B[self.links]])
         N = q + L * d
         self.fac_off = np.concatenate([[0], np.cumsum(N * N)]).astype(np.int64)
-        self.piv_off = np.concatenate([[0], np.cumsum(N)]).astype(np.int64)
+        self.piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)]).astype(np.int64)
         self.factors = np.zeros(self.fac_off[-1])
         self.pivots = np.zeros(self.piv_off[-1], dtype=np.int64)
         self.codes = np.zeros(len(self.links), dtype=np.int8)

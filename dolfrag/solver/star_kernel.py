@@ -7,8 +7,9 @@ them, copy-major) and the links [link_off[s], link_off[s+1]) of the star-link ar
 (L of them), whose two copies are slot_A, slot_B (0 .. q/d - 1). A star's unknowns z are
 ordered (x (q), r_N of every link, then each tangential component of every link), N =
 q + L d of them; its Jacobian's LU factors (partial pivoting; an explicit inverse costs
-the same to form and more to apply) are kept in ``factors`` at fac_off[s] (N^2 values)
-with the pivots at piv_off[s], for the next step's prediction (solver/active_set.py).
+the same to form and more to apply; factor_star sets the identity rows apart) are kept in
+``factors`` at fac_off[s] (N^2 values) with their index at piv_off[s] (2 N + 1), for the
+next step's prediction (solver/active_set.py).
 
 The springs of every model are secants lagged by one step (interface/models.py): a link's
 traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the step
@@ -450,9 +451,57 @@ def _gauss_seidel(q, L, d, slot_A, slot_B, frame, w, m, fixed, g_n, dg, mu, shif
 
 
 @njit(cache=True)
-def _store_factors(factors, piv, N):
-    """Views of a star's stored LU factors (N, N) and pivots (N,)."""
-    return factors[:N * N].reshape((N, N)), piv[:N]
+def factor_star(J, store, index):
+    """Factorise a star's Jacobian J (N, N) with its unit rows set apart: an unknown whose
+    row is that of the identity (an open link's normal row, a frictionless tangential row,
+    a frozen link, a prescribed component) is its own residual's, and leaves the others
+    a system on the coupled unknowns only (an intact RCCM star in tension: its q momentum
+    rows alone; a 2D star: LU of ~18 rows instead of 24 costs half). store (>= N^2): the LU
+    factors of the coupled block (n_c, n_c), then its columns of the unit unknowns
+    (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit ones, the
+    pivots."""
+    N = J.shape[0]
+    order = index[1:1 + N]
+    n_c, n_t = 0, N
+    for i in range(N):
+        unit = J[i, i] == 1.0
+        j = 0
+        while unit and j < N:
+            unit = j == i or J[i, j] == 0.0
+            j += 1
+        if unit:
+            n_t -= 1
+            order[n_t] = i
+        else:
+            order[n_c] = i
+            n_c += 1
+    index[0] = n_c
+    A = store[:n_c * n_c].reshape((n_c, n_c))
+    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    for a in range(n_c):
+        for b in range(n_c):
+            A[a, b] = J[order[a], order[b]]
+        for k in range(N - n_c):
+            C[a, k] = J[order[a], order[n_c + k]]
+    lu_factor(A, index[1 + N:1 + N + n_c])
+
+
+@njit(cache=True)
+def solve_star(store, index, R, work):
+    """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,)."""
+    N = len(R)
+    n_c = index[0]
+    order = index[1:1 + N]
+    A = store[:n_c * n_c].reshape((n_c, n_c))
+    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    for a in range(n_c):
+        s = R[order[a]]
+        for k in range(N - n_c):
+            s -= C[a, k] * R[order[n_c + k]]
+        work[a] = s
+    lu_solve(A, index[1 + N:1 + N + n_c], work[:n_c])
+    for a in range(n_c):
+        R[order[a]] = work[a]
 
 
 @njit(cache=True)
@@ -504,6 +553,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
     scratch = np.empty(3 * d * d)
+    J_work, work = np.empty(N_max * N_max), np.empty(N_max)
     for s in range(n_stars):
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -512,7 +562,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         m, fx, b_, xi = mass[p0:p1], fixed[p0:p1], rhs[p0:p1], x_in[p0:p1]
         gn, dgs, mus, shs, chs, kNs, kTs = g_n[l0:l1], dg[l0:l1], mu[l0:l1], shift[l0:l1], cohesion_T[l0:l1], \
             k_N[l0:l1], k_T[l0:l1]
-        LU, piv = _store_factors(factors[fac_off[s]:], pivots[piv_off[s]:], N)
+        store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
+        J = J_work[:N * N].reshape((N, N))
         scode = codes[l0:l1]
         xs, rs = x[:q], r[:L]
         if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
@@ -534,7 +585,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         predicted = cached[s] and predict and not imposed  # imposed motion: not cached
         if predicted:
             affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode, delta)
-            lu_solve(LU, piv, delta[:N])
+            solve_star(store, index, delta[:N], work)
             for i in range(q):
                 xs[i] = -delta[i]
             for l in range(L):
@@ -622,12 +673,12 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             # on its cached piece, a prediction only short of REGULARISATION is finished by
             # the stored factors; elsewhere a fresh Jacobian, which replaces them
             if not (iteration == 1 and on_piece):
-                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU, scratch)
-                lu_factor(LU, piv)
+                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
+                factor_star(J, store, index)
                 scode[:] = code[:L]
                 cached[s] = _cacheable(L, d, fz, code)
             delta[:N] = R[:N]
-            lu_solve(LU, piv, delta[:N])
+            solve_star(store, index, delta[:N], work)
             if CYCLE < iteration < FALLBACK:
                 direction[:N] = -delta[:N]
             for i in range(q):
@@ -656,6 +707,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
     code = np.empty(L_max, dtype=np.int8)
     R = np.empty(N_max)
     scratch = np.empty(3 * d * d)
+    J_work = np.empty(N_max * N_max)
     for s in stars:
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -669,9 +721,9 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
         _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, rhs[p0:p1], g_n[l0:l1], dg[l0:l1], mus, shift[l0:l1],
                   cohesion_T[l0:l1], kNs, kTs, h, x[p0:p1], r[l0:l1], 0.0, 0.0, False, Bx, gbar, slip, branch, e,
                   force, R, react, code, scratch)
-        LU, piv = _store_factors(factors[fac_off[s]:], pivots[piv_off[s]:], N)
-        _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, LU, scratch)
-        lu_factor(LU, piv)
+        J = J_work[:N * N].reshape((N, N))
+        _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
+        factor_star(J, factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1])
         codes[l0:l1] = code[:L]
         cached[s] = _cacheable(L, d, fz, code)
 
@@ -687,8 +739,8 @@ def warm():
         link = dict(g_n=np.zeros((L, d)), dg=np.zeros((L, d)), mu=np.zeros(L), shift=np.zeros(L),
                     cohesion_T=np.zeros(L), k_N=np.ones(L), k_T=np.ones(L))
         N = q + L * d
-        cache = dict(fac_off=np.array([0, N * N]), piv_off=np.array([0, N]), factors=np.zeros(N * N),
-                     pivots=np.zeros(N, np.int64),
+        cache = dict(fac_off=np.array([0, N * N]), piv_off=np.array([0, 2 * N + 1]), factors=np.zeros(N * N),
+                     pivots=np.zeros(2 * N + 1, np.int64),
                      codes=np.zeros(L, np.int8), cached=np.zeros(1, bool))
         solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
                     predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
