@@ -28,7 +28,7 @@ from numba import njit
 CONTACT, STICK, SLIP, PRESSED, NEGATIVE, SPRING = 1, 2, 4, 8, 16, 32
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def link_code(contact, stick, slip, pressed, e_0, gbar_N):
     """One small integer naming a link's piece: the contact branches (bools; e_0 the first
     component of the slip direction) and whether the normal spring pulls (gbar_N > 0).
@@ -41,14 +41,14 @@ def link_code(contact, stick, slip, pressed, e_0, gbar_N):
     return np.int8(code)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def spring_normal_tangent(code, k_N):
     """The springs' normal tangent (Pa/m) on a piece: k_N where the spring pulls on an open
     link, 0 in contact (the pinned normal jump does not move with x) and in closing."""
     return k_N if code & SPRING else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
                     k_T, h, code, c):
     """c (q + L d) of the star's pieces ``code`` (L,) into c: momentum rows, then the

@@ -103,7 +103,7 @@ B_CONTACT, B_STICK, B_SLIP, B_PRESSED, B_SCALE = 0, 1, 2, 3, 4
 
 # ---------------------------------------------------------------- dense LU, in place
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lu_factor(A, piv):
     """LU factors of the square A (n, n) in place, partial pivoting; piv (n,) the row swaps."""
     n = A.shape[0]
@@ -127,7 +127,7 @@ def lu_factor(A, piv):
                     A[i, j] -= factor * A[k, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lu_solve(LU, piv, b):
     """Solve A y = b in place (b (n,)), from lu_factor's LU and piv."""
     n = LU.shape[0]
@@ -149,7 +149,7 @@ def lu_solve(LU, piv, b):
 
 # ---------------------------------------------------------------- one star
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _ratio(a, scale):
     """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""
     if scale > 0:
@@ -157,7 +157,7 @@ def _ratio(a, scale):
     return np.inf if a > 0 else 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
               k_T, h, x, r, floor_m, floor_c, freeze, Bx, gbar, slip, branch, e, force, R, reaction, code, scratch):
     """The star's residual R (q + L d) at (x (q), r (L, d)), in the unknowns' order, and its
@@ -248,7 +248,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
     return _ratio(max_m, max(scale_m, floor_m)), _ratio(max_phi, max(scale_c, floor_c))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch):
     """Generalised Jacobian J (N, N) of (R_m, phi) at the point _evaluate last saw (its
     branch, e and code). On frozen links identity rows (see FROZEN); on prescribed
@@ -327,7 +327,7 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
     return N
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _gauss_seidel(q, L, d, slot_A, slot_B, frame, w, m, fixed, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rhs,
                   x, r, gbar, code, floor_c, sweeps):
     """Projected Gauss-Seidel over the star's links (the nonsmooth Gauss-Seidel of LMGC90):
@@ -450,7 +450,7 @@ def _gauss_seidel(q, L, d, slot_A, slot_B, frame, w, m, fixed, g_n, dg, mu, shif
         x[i] = s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def factor_star(J, store, index):
     """Factorise a star's Jacobian J (N, N) with its unit rows set apart: an unknown whose
     row is that of the identity (an open link's normal row, a frictionless tangential row,
@@ -486,7 +486,7 @@ def factor_star(J, store, index):
     lu_factor(A, index[1 + N:1 + N + n_c])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_star(store, index, R, work):
     """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,)."""
     N = len(R)
@@ -504,7 +504,7 @@ def solve_star(store, index, R, work):
         R[order[a]] = work[a]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cacheable(L, d, frozen, code):
     """Whether a star's Jacobian is that of an affine piece: no frozen link (a fixed-point
     iteration) and, in 3D, no slipping link (smooth, not affine)."""
@@ -516,7 +516,7 @@ def _cacheable(L, d, frozen, code):
 
 # ---------------------------------------------------------------- the loop over stars
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, cached,
@@ -591,7 +591,6 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             for l in range(L):
                 for i in range(d):
                     rs[l, i] = -delta[q + i * L + l]
-        on_piece = False
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
         for iteration in range(1, max_iterations + 2):
@@ -609,10 +608,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             same = True
             for l in range(L):
                 same = same and code[l] == scode[l]
-            if iteration == 1:  # the residual decides; the piece only whether the stored factors may finish
-                on_piece = predicted and same
-                if done:
-                    counters[N_FIRST] += 1
+            if iteration == 1 and done:
+                counters[N_FIRST] += 1
             counters[ITERATIONS] = max(counters[ITERATIONS], iteration)
             if done or last:
                 # a star's stored factors stay valid if they are the Jacobian of the piece
@@ -670,9 +667,10 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     base_x[:q], base_r[:L], base_scaled, halvings = xs, rs, scaled, 0
             if not newton:
                 continue
-            # on its cached piece, a prediction only short of REGULARISATION is finished by
-            # the stored factors; elsewhere a fresh Jacobian, which replaces them
-            if not (iteration == 1 and on_piece):
+            # on the piece of its stored factors (an affine piece, whose Jacobian the piece
+            # and the step's data determine) a star reuses them - a prediction only short
+            # of REGULARISATION is finished by them; elsewhere a fresh Jacobian replaces them
+            if not (cached[s] and same):
                 _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
                 factor_star(J, store, index)
                 scode[:] = code[:L]
@@ -688,7 +686,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     rs[l, i] -= delta[q + i * L + l]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, rhs, x, r, g_n,
                 dg, mu, shift, cohesion_T, k_N, k_T, h, fac_off, piv_off, factors, pivots, codes, cached):
     """Store, for the next step's prediction, the LU factors of the Jacobian of the piece
