@@ -6,8 +6,8 @@ Stars are stored flat: star s owns the components comps[comp_off[s]:comp_off[s+1
 them, copy-major) and the links [link_off[s], link_off[s+1]) of the star-link arrays
 (L of them), whose two copies are slot_A, slot_B (0 .. q/d - 1). A star's unknowns z are
 ordered (x (q), r_N of every link, then each tangential component of every link), N =
-q + L d of them; its Jacobian's LU factors (partial pivoting; an explicit inverse costs
-the same to form and more to apply; factor_star sets the identity rows apart) are kept in
+q + L d of them; its Jacobian's LU factors (partial pivoting, a third of the work of an
+explicit inverse; factor_star sets the identity rows apart) are kept in
 ``factors`` at fac_off[s] (N^2 values) with their index at piv_off[s] (2 N + 1), for the
 next step's prediction (solver/active_set.py).
 
