@@ -1,4 +1,4 @@
-"""Peer comparison: the expanding bar in dolfrag and in Akantu (issue 8, part 4).
+"""Peer comparison: the expanding bar in dolfrag and in Akantu.
 
 The same 2D problem in both codes: the bar of dolfrag's built-in case ``expanding-bar``
 (0.12 m x 0.04 m, plane strain, E = 35 GPa, nu = 0.2, rho = 2350 kg/m^3, linear-softening
@@ -38,7 +38,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 CASE = "expanding-bar"
-# Akantu's intrinsic elastic branch, sigma_c / delta_0 = STIFFNESS_RATIO E / h: the seed's
+# Akantu's intrinsic elastic branch, sigma_c / delta_0 = STIFFNESS_RATIO E / h: the paper's
 # interface stiffness rule (dolfrag's RCCM default), ~5 % artificial compliance in 1D.
 STIFFNESS_RATIO = 10.0
 # Akantu's explicit step as a share of its bulk stable step (getStableTimeStep, which ignores

@@ -39,11 +39,16 @@ TRIANGLES_PER_AREA_H2 = 2.33
 TETRAHEDRA_PER_VOLUME_H3 = 5.5
 
 
-def timed(fn, repeat, comm):
+def timed(fn, repeat, comm, cpu=None):
+    """Wall time (s) of one call of fn, the mean of ``repeat``; with cpu (a list), the CPU
+    time of this rank's process per call is appended to it (on a shared machine the wall
+    time includes waiting for a core, CPU time does not)."""
     comm.barrier()
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     for _ in range(repeat):
         fn()
+    if cpu is not None:
+        cpu.append((time.process_time() - start_cpu) / repeat)
     comm.barrier()
     return (time.perf_counter() - start) / repeat
 
@@ -67,8 +72,10 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
     if scheme == "theta":
         return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),
                                         steps, comm, h_factor))
-    integ.step()  # warm-up
-    per_step = timed(integ.step, steps, comm)
+    integ.step()  # warm-up (and, on a fresh install, the star kernel's compilation)
+    cpu = []
+    per_step = timed(integ.step, steps, comm, cpu)
+    cpu_ns = f"CPU {1e9 * comm.allreduce(cpu[0], op=MPI.MAX) / (n_cells / comm.size):.0f} ns/elem-step"
     u = integ.u.x.array
     rss = peak_memory(comm)
     floor = comm.allreduce(streamed_bytes(integ), op=MPI.MAX) / (n_cells / comm.size)
@@ -76,15 +83,15 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
     if law != "elastic":
         broken = comm.allreduce(int(integ.model.broken().sum()))
         iterations = comm.allreduce(integ.interface.iterations, op=MPI.MAX)
-        return n_cells, per_step, (f"star Newton: {iterations} iterations (last step), {broken} broken links, "
-                                   f"{streamed}"), rss
+        return n_cells, per_step, (f"{cpu_ns}; star Newton: {iterations} iterations (last step), {broken} broken "
+                                   f"links, {streamed}"), rss
     parts = {
         "bulk K u": lambda: integ.bulk.K_cells @ u[integ.owned],
         "ghost update": lambda: integ.f.x.scatter_forward(),
         "star step": lambda: integ.interface.solve(integ.f.x.array, u, integ._g, None, integ.dv.x.array),
     }
     breakdown = ", ".join(f"{k} {1e9 * timed(fn, steps, comm) / n_cells:.0f}" for k, fn in parts.items())
-    return n_cells, per_step, f"{breakdown}; {streamed}", rss
+    return n_cells, per_step, f"{cpu_ns}; {breakdown}; {streamed}", rss
 
 
 def streamed_bytes(integ):
@@ -100,8 +107,9 @@ def streamed_bytes(integ):
     for group in solver.stars.groups:
         arrays += [a for a in (group.inv, group.links, group.valid) if a is not None]
     arrays += getattr(solver, "_step", [])
-    for data, sets in zip(getattr(solver, "_data", ()), getattr(solver, "_sets", ())):
-        arrays += [*data, sets.inverse, sets.D, sets.code]
+    layout = getattr(solver, "layout", None)
+    if layout is not None:  # the star kernel's flat layout and its cached factors
+        arrays += [*layout.geometry(), *layout.cache(), layout.comps, layout.links]
     return sum(a.nbytes for a in arrays)
 
 

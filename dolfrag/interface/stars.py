@@ -1,4 +1,4 @@
-"""Star-local exact solves of the implicit interface step (shared/DESIGN.md §4).
+"""Star-local exact solves of the implicit interface step.
 
 With a lumped mass and nodal interface quadrature a link joins two copies of the same
 mesh vertex, so the step matrix ``diag(m) + c K_i`` is block-diagonal over vertex stars

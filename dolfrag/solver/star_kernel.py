@@ -1,0 +1,754 @@
+"""Compiled solves of the vertex stars of the nonsmooth imex step: one loop over a rank's
+stars per step, each star's whole semi-smooth Newton inside (solver/semismooth.py states
+the problem).
+
+Stars are stored flat: star s owns the components comps[comp_off[s]:comp_off[s+1]] (q of
+them, copy-major) and the links [link_off[s], link_off[s+1]) of the star-link arrays
+(L of them), whose two copies are slot_A, slot_B (0 .. q/d - 1). A star's unknowns z are
+ordered (x (q), r_N of every link, then each tangential component of every link), N =
+q + L d of them; its Jacobian's LU factors (partial pivoting, a third of the work of an
+explicit inverse; factor_star sets the identity rows apart) are kept in
+``factors`` at fac_off[s] (N^2 values) with their index at piv_off[s] (2 N + 1), for the
+next step's prediction (solver/active_set.py).
+
+The springs of every model are secants lagged by one step (interface/models.py): a link's
+traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the step
+(semismooth.spring_coefficients). Run ``python -m dolfrag.solver.star_kernel --warm`` to
+compile the kernels into numba's cache (``make install`` does).
+"""
+import sys
+
+import numpy as np
+from numba import njit
+
+from dolfrag.solver.active_set import CONTACT, SLIP, SPRING, affine_constant, link_code
+
+# A link whose two copies are both prescribed (between supported copies, or in a patch
+# test) has a known jump, so Newton cannot move it and its contact rows would be singular.
+# Its reaction is the projection itself, taken with the augmentation FROZEN times larger
+# (so a prescribed opening releases the constraint at once) and iterated as a fixed
+# point: identity rows in the Jacobian.
+FROZEN = 1e6
+
+# Rigid constraints around a vertex are redundant: the jumps of an interior star sum to zero
+# around the vertex, so when every link sticks (a rigid threshold or linear-softening star,
+# or a frictional contact ring) the constraint rows lose rank and the exact Jacobian is
+# singular. The Newton matrix gets REGULARISATION on the reaction diagonal (d phi / d r) of
+# sticking links only (elsewhere Newton stays exact: on a piecewise-linear piece it lands in
+# one step, which a cold start needs):
+# the residual stays exact, so the solution does too; Newton converges at a rate of about
+# REGULARISATION per iteration instead of exactly, and picks one of the equivalent
+# reactions in the redundant directions (they do no work: same motion, same energies).
+REGULARISATION = 1e-6
+
+# A star has converged once its residual is below RTOL of its largest term (scaled as in
+# _evaluate): ~1e6 times round-off, where the quadratic phase of Newton has ended.
+RTOL = 1e-10
+
+# Full Newton steps for this many iterations, then backtracking on the scaled residual:
+# a semi-smooth Newton can cycle between active sets of contact and friction (measured on
+# the rigid laws, and on linear softening with friction: period-4 cycles of a star whose
+# sprung link toggles between open and slipping); halving the step (at most SHORTEST
+# times) from the last point that lowered the residual breaks the cycle.
+CYCLE = 20
+SHORTEST = 6
+
+# A star started from its prediction and not solved after RESTART iterations starts again
+# from zero (x = 0, r = 0), the start that the solver had before predictions: measured on
+# expanding-bar (linear softening, 3 mm, normalised rate 0.1, benchmarks/robustness.py), an
+# interior ring of six rigid links wandered from its prediction through 1,000 iterations,
+# Gauss-Seidel included, and converges from zero in 6.
+RESTART = 10
+
+# Where the semi-smooth Newton stalls (a link sitting on the kink between stick and slip,
+# measured on the rigid laws with friction: residuals stuck at 1e-10 .. 2e-9 of the star's
+# reactions), a star within STALL is accepted from FALLBACK iterations on.
+STALL = 1e-8
+
+# From FALLBACK on, a star whose contact and friction are within STALL and whose momentum
+# is within GIVE_UP is accepted; so is, after max_iterations, the best iterate it reached
+# if within GIVE_UP overall (both counted as stalled). Measured on wall-bending-clamped
+# under imex at 51 ms: a closed star of 6 links (4 broken and in contact, 1 partly damaged
+# and sticking, 1 intact), whose normal springs (opening only) sit on their kink at
+# g_N = 0: Gauss-Seidel solves its contact and friction to 1e-10, and leaves the momentum
+# at 6.3e-7 (the springs' side of the kink read at a gap exact only to the contact
+# tolerance, 1e-13 m); each Newton polish from there sent it astray. Reading closed links'
+# springs at the jump contact pins (see _evaluate) removed that case; GIVE_UP stays the
+# last net. 1e-6 of the star's momentum is far below any error of the discretisation; a
+# star above it still stops the run.
+GIVE_UP = 1e-6
+
+# Newton iterations after which a star still unconverged alternates projected Gauss-Seidel
+# sweeps (_gauss_seidel, see SWEEPS) with full Newton steps from their result (which
+# finish the job once Gauss-Seidel has found the active set).
+FALLBACK = 30
+
+# Projected Gauss-Seidel sweeps in the first fallback call, doubled at each call up to
+# MAX_SWEEPS: Newton usually finishes after a few hundred, but with friction mu = 0.6 the
+# sweeps crawl (measured: up to 14,455 before the reactions settle, sound-bar with linear
+# softening), and a fixed budget of 300 let each Newton polish undo them.
+SWEEPS = 300
+MAX_SWEEPS = 20000
+
+# What each star's solve ended as (``status``): below rtol; accepted above it (from
+# FALLBACK on, within STALL or GIVE_UP); unconverged.
+CONVERGED, STALLED, UNCONVERGED = 0, 1, 2
+
+# Indices into the counters the kernel returns.
+ITERATIONS, N_UNCONVERGED, N_STALLED, N_FIRST = 0, 1, 2, 3
+
+# Columns of the per-link branch table of _evaluate.
+B_CONTACT, B_STICK, B_SLIP, B_PRESSED, B_SCALE = 0, 1, 2, 3, 4
+
+
+# ---------------------------------------------------------------- dense LU, in place
+
+@njit(cache=True, error_model="numpy")
+def lu_factor(A, piv):
+    """LU factors of the square A (n, n) in place, partial pivoting; piv (n,) the row swaps."""
+    n = A.shape[0]
+    for k in range(n):
+        p, big = k, abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                p, big = i, abs(A[i, k])
+        piv[k] = p
+        if p != k:
+            for j in range(n):
+                A[k, j], A[p, j] = A[p, j], A[k, j]
+        if A[k, k] == 0.0:
+            continue
+        inverse = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            factor = A[i, k] * inverse
+            A[i, k] = factor
+            if factor != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= factor * A[k, j]
+
+
+@njit(cache=True, error_model="numpy")
+def lu_solve(LU, piv, b):
+    """Solve A y = b in place (b (n,)), from lu_factor's LU and piv."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            b[k], b[p] = b[p], b[k]
+    for i in range(n):
+        s = b[i]
+        for j in range(i):
+            s -= LU[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= LU[i, j] * b[j]
+        b[i] = s / LU[i, i]
+
+
+# ---------------------------------------------------------------- one star
+
+@njit(cache=True, error_model="numpy")
+def _ratio(a, scale):
+    """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""
+    if scale > 0:
+        return a / scale
+    return np.inf if a > 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
+              k_T, h, x, r, floor_m, floor_c, freeze, Bx, gbar, slip, branch, e, force, R, reaction, code, scratch):
+    """The star's residual R (q + L d) at (x (q), r (L, d)), in the unknowns' order, and its
+    scaled parts (momentum, contact), returned. Per link it leaves B x in the link frame
+    (Bx), the jump the springs are read at (gbar), the end-of-step slip h B (v_- + x)
+    (slip), the branches of the projections (branch, e: slip direction) and the piece
+    (code); per component the interface force h B^T w (t - r) (force) and the reactions
+    of prescribed components (reaction, N). freeze: frozen links take FROZEN rho;
+    scratch (>= 2 d,) workspace.
+
+        R_m = m x - h f + h B^T w (t(gbar) - r)       (0 on prescribed components)
+        phi = Alart-Curnier of Signorini-Coulomb on the cone shifted by the cohesion,
+              at g_end = g_n + dg + h B x            (interface/contact.py)
+        gbar = g_n + h B x / 4, but 3 g_n,N / 4 - dg_N / 4 on closed links
+
+    Closed links read their normal spring at the jump contact pins (where g_end,N = 0),
+    which does not move with x: read at gbar(x), a spring acting in opening only sat on its
+    kink at g_N = 0 at gaps exact to the contact tolerance (1e-13 m), and Newton and
+    Gauss-Seidel, each on one side, did not meet (measured: see GIVE_UP).
+    """
+    for i in range(q):
+        force[i] = 0.0
+    max_phi, max_r, max_terms = 0.0, 0.0, 0.0
+    jump, t = scratch[:d], scratch[d:2 * d]
+    for l in range(L):
+        a, b = slot_A[l], slot_B[l]
+        for j in range(d):
+            jump[j] = x[b * d + j] - x[a * d + j]
+        for i in range(d):
+            s = 0.0
+            for j in range(d):
+                s += frame[l, i, j] * jump[j]
+            Bx[l, i] = s
+            gbar[l, i] = g_n[l, i] + 0.25 * h * s
+            slip[l, i] = dg[l, i] + h * s
+            max_terms = max(max_terms, rho[l] * (abs(g_n[l, i]) + abs(dg[l, i]) + h * abs(s)))
+            max_r = max(max_r, abs(r[l, i]))
+        rho_l = FROZEN * rho[l] if freeze and frozen[l] else rho[l]
+        # shifted Signorini on r~_N = r_N + shift, Coulomb on the shifted cone
+        r_shift = r[l, 0] + shift[l]
+        y_N = r_shift - rho_l * (g_n[l, 0] + slip[l, 0])
+        contact = y_N >= 0
+        phi = r_shift - max(0.0, y_N)
+        R[q + l] = phi
+        max_phi = max(max_phi, abs(phi))
+        pressed = r_shift > 0
+        radius = mu[l] * (r_shift if pressed else 0.0) + cohesion_T[l]
+        norm = 0.0
+        for i in range(1, d):
+            y_i = r[l, i] - rho_l * slip[l, i]
+            norm += y_i * y_i
+        norm = np.sqrt(norm)
+        stick = norm <= radius and radius > 0
+        slipping = norm > radius and radius > 0
+        scale = radius / norm if slipping else 0.0
+        for i in range(1, d):
+            y_i = r[l, i] - rho_l * slip[l, i]
+            e[l, i - 1] = y_i / norm if slipping else 0.0
+            phi = rho_l * slip[l, i] if stick else r[l, i] - scale * y_i
+            R[q + i * L + l] = phi
+            max_phi = max(max_phi, abs(phi))
+        branch[l, B_CONTACT] = 1.0 if contact else 0.0
+        branch[l, B_STICK] = 1.0 if stick else 0.0
+        branch[l, B_SLIP] = 1.0 if slipping else 0.0
+        branch[l, B_PRESSED] = 1.0 if pressed else 0.0
+        branch[l, B_SCALE] = scale
+        if contact:
+            gbar[l, 0] = 0.75 * g_n[l, 0] - 0.25 * dg[l, 0]
+        code[l] = link_code(contact, stick, slipping, pressed, e[l, 0] if d > 1 else 0.0, gbar[l, 0])
+        t[0] = w[l] * (k_N[l] * max(gbar[l, 0], 0.0) - r[l, 0])
+        for i in range(1, d):
+            t[i] = w[l] * (k_T[l] * gbar[l, i] - r[l, i])
+        for j in range(d):
+            F = 0.0
+            for i in range(d):
+                F += frame[l, i, j] * t[i]
+            force[b * d + j] += h * F
+            force[a * d + j] -= h * F
+    scale_m, max_m = 0.0, 0.0
+    for i in range(q):
+        mx = m[i] * x[i]
+        scale_m = max(scale_m, abs(rhs[i]), abs(mx), abs(force[i]))
+        R_i = mx - rhs[i] + force[i]
+        reaction[i] = R_i / h if fixed[i] else 0.0
+        R[i] = 0.0 if fixed[i] else R_i
+        max_m = max(max_m, abs(R[i]))
+    scale_c = max_r + max_terms
+    return _ratio(max_m, max(scale_m, floor_m)), _ratio(max_phi, max(scale_c, floor_c))
+
+
+@njit(cache=True, error_model="numpy")
+def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch):
+    """Generalised Jacobian J (N, N) of (R_m, phi) at the point _evaluate last saw (its
+    branch, e and code). On frozen links identity rows (see FROZEN); on prescribed
+    components identity rows and zero columns; sticking links get REGULARISATION on
+    their reaction diagonal. scratch (>= 3 d^2,) workspace."""
+    N = q + L * d
+    J[:, :] = 0.0
+    for i in range(q):
+        J[i, i] = m[i]
+    RtDR = scratch[:d * d].reshape((d, d))
+    JgR = scratch[d * d:2 * d * d].reshape((d, d))
+    P = scratch[2 * d * d:3 * d * d].reshape((d, d))
+    for l in range(L):
+        a, b = slot_A[l], slot_B[l]
+        R = frame[l]
+        contact, stick = branch[l, B_CONTACT] > 0, branch[l, B_STICK] > 0
+        slipping, pressed, scale = branch[l, B_SLIP] > 0, branch[l, B_PRESSED] > 0, branch[l, B_SCALE]
+        rho_l = FROZEN * rho[l] if frozen[l] else rho[l]
+        # springs: h^2/4 w R^T D R, D = diag(dN, k_T ...)
+        dN = 0.0 if contact else (k_N[l] if (code[l] & SPRING) else 0.0)
+        for i in range(d):
+            for j in range(d):
+                s = dN * R[0, i] * R[0, j]
+                for k in range(1, d):
+                    s += k_T[l] * R[k, i] * R[k, j]
+                RtDR[i, j] = 0.25 * h * h * w[l] * s
+        for i in range(d):
+            for j in range(d):
+                J[b * d + i, b * d + j] += RtDR[i, j]
+                J[a * d + i, a * d + j] += RtDR[i, j]
+                J[b * d + i, a * d + j] -= RtDR[i, j]
+                J[a * d + i, b * d + j] -= RtDR[i, j]
+        # reactions in the momentum rows: -h w B^T
+        for i in range(d):
+            row = q + i * L + l
+            for j in range(d):
+                J[b * d + j, row] = -h * w[l] * R[i, j]
+                J[a * d + j, row] = h * w[l] * R[i, j]
+        # tangential projection: P = scale (I - e e^T) where slipping
+        for i in range(d - 1):
+            for j in range(d - 1):
+                P[i, j] = scale * ((1.0 if i == j else 0.0) - e[l, i] * e[l, j])
+        # d phi / d x = h Jg R, Jg = diag(rho [contact], rho (I [stick] or P))
+        for j in range(d):
+            JgR[0, j] = (rho_l * R[0, j]) if contact else 0.0
+            for i in range(1, d):
+                s = 0.0
+                for k in range(1, d):
+                    s += (rho_l * (1.0 if i == k else 0.0) if stick else rho_l * P[i - 1, k - 1]) * R[k, j]
+                JgR[i, j] = s
+        for i in range(d):
+            row = q + i * L + l
+            for j in range(d):
+                J[row, b * d + j] = h * JgR[i, j]
+                J[row, a * d + j] = -h * JgR[i, j]
+        # d phi / d r
+        J[q + l, q + l] = 0.0 if contact else 1.0
+        for i in range(1, d):
+            row = q + i * L + l
+            J[row, q + l] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
+            for k in range(1, d):
+                J[row, q + k * L + l] = 0.0 if stick else (1.0 if i == k else 0.0) - P[i - 1, k - 1]
+        if stick:
+            for i in range(d):
+                J[q + i * L + l, q + i * L + l] += REGULARISATION
+        if frozen[l]:
+            for i in range(d):
+                row = q + i * L + l
+                J[row, :] = 0.0
+                J[row, row] = 1.0
+    for i in range(q):
+        if fixed[i]:
+            J[i, :] = 0.0
+            J[:, i] = 0.0
+            J[i, i] = 1.0
+    return N
+
+
+@njit(cache=True, error_model="numpy")
+def _gauss_seidel(q, L, d, slot_A, slot_B, frame, w, m, fixed, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rhs,
+                  x, r, gbar, code, floor_c, sweeps):
+    """Projected Gauss-Seidel over the star's links (the nonsmooth Gauss-Seidel of LMGC90):
+    with the springs' affine model of the current iterate held (traction t0 + D h B x / 4,
+    read as in _evaluate: gbar and code from it), x is linear in r, x = x0 + X r, so the
+    end-of-step jumps are c + G r; each link in turn projects r_l - rho_l (its gap, its
+    slip) onto the shifted Signorini-Coulomb set, rho_l = 1 / max diag G_ll. Overwrites
+    x (q,) and r (L, d)."""
+    n = L * d
+    A = np.zeros((q, q))
+    P = np.zeros((q, n))  # B^T W
+    spring = np.zeros(n)
+    for i in range(q):
+        A[i, i] = m[i]
+    for l in range(L):
+        a, b = slot_A[l], slot_B[l]
+        R = frame[l]
+        dN = k_N[l] if (code[l] & SPRING) else 0.0  # spring pulls on an open link
+        spring[l * d] = dN * g_n[l, 0] + (k_N[l] * max(gbar[l, 0], 0.0) if code[l] & CONTACT else 0.0)
+        for i in range(1, d):
+            spring[l * d + i] = k_T[l] * g_n[l, i]
+        for i in range(d):
+            for j in range(d):
+                s = dN * R[0, i] * R[0, j]
+                for k in range(1, d):
+                    s += k_T[l] * R[k, i] * R[k, j]
+                s *= 0.25 * h * h * w[l]
+                A[b * d + i, b * d + j] += s
+                A[a * d + i, a * d + j] += s
+                A[b * d + i, a * d + j] -= s
+                A[a * d + i, b * d + j] -= s
+            for j in range(d):
+                P[b * d + j, l * d + i] = w[l] * R[i, j]
+                P[a * d + j, l * d + i] = -w[l] * R[i, j]
+    b0 = np.empty(q)
+    for i in range(q):
+        s = rhs[i]
+        for k in range(n):
+            s -= h * P[i, k] * spring[k]
+        for j in range(q):
+            if fixed[j]:
+                s -= A[i, j] * x[j]
+        b0[i] = s
+    for i in range(q):
+        if fixed[i]:
+            A[i, :] = 0.0
+            A[:, i] = 0.0
+            A[i, i] = 1.0
+            P[i, :] = 0.0
+    piv = np.empty(q, dtype=np.int64)
+    lu_factor(A, piv)
+    x0 = np.empty(q)
+    for i in range(q):
+        x0[i] = x[i] if fixed[i] else b0[i]
+    lu_solve(A, piv, x0)
+    X = np.empty((q, n))
+    column = np.empty(q)
+    for k in range(n):
+        for i in range(q):
+            column[i] = h * P[i, k]
+        lu_solve(A, piv, column)
+        X[:, k] = column
+    # B as (n, q): link-frame jumps of the components
+    c = np.empty(n)
+    G = np.zeros((n, n))
+    for l in range(L):
+        a, b = slot_A[l], slot_B[l]
+        for i in range(d):
+            s = 0.0
+            for j in range(d):
+                s += frame[l, i, j] * (x0[b * d + j] - x0[a * d + j])
+            c[l * d + i] = g_n[l, i] + dg[l, i] + h * s
+            for k in range(n):
+                s = 0.0
+                for j in range(d):
+                    s += frame[l, i, j] * (X[b * d + j, k] - X[a * d + j, k])
+                G[l * d + i, k] = h * s
+    rho = np.empty(L)
+    for l in range(L):
+        big = G[l * d, l * d]
+        for i in range(1, d):
+            big = max(big, G[l * d + i, l * d + i])
+        rho[l] = 1.0 / big if big > 0 else 0.0
+    y = np.empty(d)
+    z = np.empty(d)
+    for _ in range(sweeps):
+        change, largest = 0.0, 0.0
+        for l in range(L):
+            if rho[l] <= 0:
+                continue
+            for i in range(d):
+                s = c[l * d + i]
+                for k in range(L):
+                    for j in range(d):
+                        s += G[l * d + i, k * d + j] * r[k, j]
+                y[i] = s
+            r_N = max(-shift[l], r[l, 0] - rho[l] * y[0])
+            norm = 0.0
+            for i in range(1, d):
+                z[i] = r[l, i] - rho[l] * (y[i] - g_n[l, i])
+                norm += z[i] * z[i]
+            norm = np.sqrt(norm)
+            radius = mu[l] * max(r_N + shift[l], 0.0) + cohesion_T[l]
+            cut = min(1.0, radius / norm) if norm > 0 else 1.0
+            change = max(change, abs(r_N - r[l, 0]))
+            r[l, 0] = r_N
+            for i in range(1, d):
+                change = max(change, abs(cut * z[i] - r[l, i]))
+                r[l, i] = cut * z[i]
+        for l in range(L):
+            for i in range(d):
+                largest = max(largest, abs(r[l, i]))
+        if change <= 1e-14 * (largest + floor_c):
+            break
+    for i in range(q):
+        s = x0[i]
+        for l in range(L):
+            for j in range(d):
+                s += X[i, l * d + j] * r[l, j]
+        x[i] = s
+
+
+@njit(cache=True, error_model="numpy")
+def factor_star(J, store, index):
+    """Factorise a star's Jacobian J (N, N) with its unit rows set apart: an unknown whose
+    row is that of the identity (an open link's normal row, a frictionless tangential row,
+    a frozen link, a prescribed component) is its own residual's, and leaves the others
+    a system on the coupled unknowns only (an intact RCCM star in tension: its q momentum
+    rows alone; a 2D star: LU of ~18 rows instead of 24 costs half). store (>= N^2): the LU
+    factors of the coupled block (n_c, n_c), then its columns of the unit unknowns
+    (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit ones, the
+    pivots."""
+    N = J.shape[0]
+    order = index[1:1 + N]
+    n_c, n_t = 0, N
+    for i in range(N):
+        unit = J[i, i] == 1.0
+        j = 0
+        while unit and j < N:
+            unit = j == i or J[i, j] == 0.0
+            j += 1
+        if unit:
+            n_t -= 1
+            order[n_t] = i
+        else:
+            order[n_c] = i
+            n_c += 1
+    index[0] = n_c
+    A = store[:n_c * n_c].reshape((n_c, n_c))
+    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    for a in range(n_c):
+        for b in range(n_c):
+            A[a, b] = J[order[a], order[b]]
+        for k in range(N - n_c):
+            C[a, k] = J[order[a], order[n_c + k]]
+    lu_factor(A, index[1 + N:1 + N + n_c])
+
+
+@njit(cache=True, error_model="numpy")
+def solve_star(store, index, R, work):
+    """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,)."""
+    N = len(R)
+    n_c = index[0]
+    order = index[1:1 + N]
+    A = store[:n_c * n_c].reshape((n_c, n_c))
+    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    for a in range(n_c):
+        s = R[order[a]]
+        for k in range(N - n_c):
+            s -= C[a, k] * R[order[n_c + k]]
+        work[a] = s
+    lu_solve(A, index[1 + N:1 + N + n_c], work[:n_c])
+    for a in range(n_c):
+        R[order[a]] = work[a]
+
+
+@njit(cache=True, error_model="numpy")
+def _cacheable(L, d, frozen, code):
+    """Whether a star's Jacobian is that of an affine piece: no frozen link (a fixed-point
+    iteration) and, in 3D, no slipping link (smooth, not affine)."""
+    for l in range(L):
+        if frozen[l] or (d == 3 and (code[l] & SLIP)):
+            return False
+    return True
+
+
+# ---------------------------------------------------------------- the loop over stars
+
+@njit(cache=True, error_model="numpy")
+def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
+                rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
+                floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, cached,
+                x_out, r_out, reaction, gbar_out, g_mid, status, residual, counters):
+    """Solve every star of the rank for this step.
+
+    Per star component (flat over the stars, comp_off): mass (kg), fixed, rhs = h f (N s),
+    x_in (m/s: the prescribed increments); per star link (link_off): slot_A, slot_B,
+    frame (d, d), weight (m or m^2), rho (Pa/m: the step's stiffness), frozen, g_n, dg
+    (link frame, m: the jump of u_n and h B v_-), mu, shift, cohesion_T (Pa), k_N, k_T
+    (Pa/m). The cache (fac_off, piv_off, factors, pivots, codes, cached) holds each star's last
+    Jacobian and piece; Newton's Jacobians replace it, and ``cached`` is left true only
+    where the star converged on the piece of its stored factors.
+
+    Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, g_mid (the springs'
+    jump and (g_n + g_{n+1}) / 2, m) per link; per star status (CONVERGED, STALLED,
+    UNCONVERGED) and its final scaled residual; counters: the most iterations, the
+    unconverged and stalled stars, the stars solved at iteration 1.
+    """
+    n_stars = len(comp_off) - 1
+    d = frame.shape[1]
+    q_max, L_max = 0, 0
+    for s in range(n_stars):
+        q_max = max(q_max, comp_off[s + 1] - comp_off[s])
+        L_max = max(L_max, link_off[s + 1] - link_off[s])
+    N_max = q_max + L_max * d
+    # workspaces, once per call
+    x, force, react = np.empty(q_max), np.empty(q_max), np.empty(q_max)
+    r = np.empty((L_max, d))
+    Bx, gbar, slip = np.empty((L_max, d)), np.empty((L_max, d)), np.empty((L_max, d))
+    branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
+    code = np.empty(L_max, dtype=np.int8)
+    R, delta, direction = np.empty(N_max), np.empty(N_max), np.empty(N_max)
+    best_x, best_r = np.empty(q_max), np.empty((L_max, d))
+    base_x, base_r = np.empty(q_max), np.empty((L_max, d))
+    scratch = np.empty(3 * d * d)
+    J_work, work = np.empty(N_max * N_max), np.empty(N_max)
+    for s in range(n_stars):
+        p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
+        q, L = p1 - p0, l1 - l0
+        N = q + L * d
+        sA, sB, fr, w, rh, fz = slot_A[l0:l1], slot_B[l0:l1], frame[l0:l1], weight[l0:l1], rho[l0:l1], frozen[l0:l1]
+        m, fx, b_, xi = mass[p0:p1], fixed[p0:p1], rhs[p0:p1], x_in[p0:p1]
+        gn, dgs, mus, shs, chs, kNs, kTs = g_n[l0:l1], dg[l0:l1], mu[l0:l1], shift[l0:l1], cohesion_T[l0:l1], \
+            k_N[l0:l1], k_T[l0:l1]
+        store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
+        J = J_work[:N * N].reshape((N, N))
+        scode = codes[l0:l1]
+        xs, rs = x[:q], r[:L]
+        if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
+            for i in range(q):
+                x_out[p0 + i] = xi[i] if fx[i] else b_[i] / m[i]
+                reaction[p0 + i] = (m[i] * xi[i] - b_[i]) / h if fx[i] else 0.0
+            status[s], residual[s] = CONVERGED, 0.0
+            continue
+        imposed = False
+        for i in range(q):
+            xs[i] = xi[i] if fx[i] else 0.0
+            imposed = imposed or (fx[i] and xi[i] != 0.0)
+        # reactions start from zero (or from this step's prediction), never from the last
+        # step: around a rigid star they are determined only up to self-equilibrated rings
+        # (see REGULARISATION), which a warm start carried from step to step until they
+        # choked the friction cones (measured: threshold and linear-softening runs then
+        # failed to converge; cold, they complete)
+        rs[:, :] = 0.0
+        predicted = cached[s] and predict and not imposed  # imposed motion: not cached
+        if predicted:
+            affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode, delta)
+            solve_star(store, index, delta[:N], work)
+            for i in range(q):
+                xs[i] = -delta[i]
+            for l in range(L):
+                for i in range(d):
+                    rs[l, i] = -delta[q + i * L + l]
+        has_best = False
+        best_scaled, base_scaled, halvings = np.inf, np.inf, 0
+        for iteration in range(1, max_iterations + 2):
+            scaled_m, scaled_c = _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs,
+                                           h, xs, rs, floor_m, floor_c, True, Bx, gbar, slip, branch, e, force, R,
+                                           react, code, scratch)
+            scaled = max(scaled_m, scaled_c)
+            last = iteration > max_iterations  # the best iterate, evaluated once more
+            if iteration < FALLBACK:
+                done = scaled <= rtol
+                stalled = False
+            else:  # stalled: accepted (see STALL, GIVE_UP)
+                done = scaled <= (GIVE_UP if last else STALL) or (scaled_c <= STALL and scaled_m <= GIVE_UP)
+                stalled = done and scaled > STALL
+            same = True
+            for l in range(L):
+                same = same and code[l] == scode[l]
+            if iteration == 1 and done:
+                counters[N_FIRST] += 1
+            counters[ITERATIONS] = max(counters[ITERATIONS], iteration)
+            if done or last:
+                # a star's stored factors stay valid if they are the Jacobian of the piece
+                # it converged on (then only damage can change them)
+                cached[s] = cached[s] and same and done
+                if done:
+                    status[s] = CONVERGED if scaled <= rtol else STALLED
+                    if stalled:
+                        counters[N_STALLED] += 1
+                else:  # above GIVE_UP even at its best: the run stops (ConvergenceError)
+                    status[s] = UNCONVERGED
+                    counters[N_UNCONVERGED] += 1
+                residual[s] = scaled
+                for i in range(q):
+                    x_out[p0 + i] = xs[i]
+                    reaction[p0 + i] = react[i]
+                for l in range(L):
+                    for i in range(d):
+                        r_out[l0 + l, i] = rs[l, i]
+                        gbar_out[l0 + l, i] = gbar[l, i]
+                        g_mid[l0 + l, i] = gn[l, i] + 0.5 * slip[l, i]
+                break
+            if predicted and iteration == RESTART:
+                for i in range(q):
+                    xs[i] = xi[i] if fx[i] else 0.0
+                rs[:, :] = 0.0
+                continue
+            if iteration >= FALLBACK:
+                if not has_best:
+                    best_x[:q], best_r[:L], has_best = xs, rs, True
+                if scaled < best_scaled:
+                    best_x[:q], best_r[:L], best_scaled = xs, rs, scaled
+            if iteration == max_iterations and has_best:
+                xs[:], rs[:, :] = best_x[:q], best_r[:L]
+                continue
+            if iteration >= FALLBACK and (iteration - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
+                _gauss_seidel(q, L, d, sA, sB, fr, w, m, fx, gn, dgs, mus, shs, chs, kNs, kTs, h, b_, xs, rs, gbar,
+                              code, floor_c, min(SWEEPS * 2 ** ((iteration - FALLBACK) // 2), MAX_SWEEPS))
+                continue
+            newton = True
+            if CYCLE < iteration < FALLBACK:  # a shorter step along the last direction
+                if iteration == CYCLE + 1:
+                    base_x[:q], base_r[:L], base_scaled, halvings = xs, rs, np.inf, 0
+                    direction[:N] = 0.0
+                if scaled >= base_scaled and halvings < SHORTEST:
+                    newton = False
+                    halvings += 1
+                    alpha = 0.5 ** halvings
+                    for i in range(q):
+                        xs[i] = base_x[i] + alpha * direction[i]
+                    for l in range(L):
+                        for i in range(d):
+                            rs[l, i] = base_r[l, i] + alpha * direction[q + i * L + l]
+                else:
+                    base_x[:q], base_r[:L], base_scaled, halvings = xs, rs, scaled, 0
+            if not newton:
+                continue
+            # on the piece of its stored factors (an affine piece, whose Jacobian the piece
+            # and the step's data determine) a star reuses them - a prediction only short
+            # of REGULARISATION is finished by them; elsewhere a fresh Jacobian replaces them
+            if not (cached[s] and same):
+                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
+                factor_star(J, store, index)
+                scode[:] = code[:L]
+                cached[s] = _cacheable(L, d, fz, code)
+            delta[:N] = R[:N]
+            solve_star(store, index, delta[:N], work)
+            if CYCLE < iteration < FALLBACK:
+                direction[:N] = -delta[:N]
+            for i in range(q):
+                xs[i] -= delta[i]
+            for l in range(L):
+                for i in range(d):
+                    rs[l, i] -= delta[q + i * L + l]
+
+
+@njit(cache=True, error_model="numpy")
+def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, rhs, x, r, g_n,
+                dg, mu, shift, cohesion_T, k_N, k_T, h, fac_off, piv_off, factors, pivots, codes, cached):
+    """Store, for the next step's prediction, the LU factors of the Jacobian of the piece
+    each of ``stars`` converged on (x per component, r per link), with the friction,
+    cohesion and springs (mu .. k_T per link) after the step; cached where the piece is
+    affine. Arguments as solve_stars."""
+    d = frame.shape[1]
+    q_max, L_max = 0, 0
+    for s in stars:
+        q_max = max(q_max, comp_off[s + 1] - comp_off[s])
+        L_max = max(L_max, link_off[s + 1] - link_off[s])
+    N_max = q_max + L_max * d
+    force, react = np.empty(q_max), np.empty(q_max)
+    Bx, gbar, slip = np.empty((L_max, d)), np.empty((L_max, d)), np.empty((L_max, d))
+    branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
+    code = np.empty(L_max, dtype=np.int8)
+    R = np.empty(N_max)
+    scratch = np.empty(3 * d * d)
+    J_work = np.empty(N_max * N_max)
+    for s in stars:
+        p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
+        q, L = p1 - p0, l1 - l0
+        N = q + L * d
+        if L == 0:
+            cached[s] = False
+            continue
+        sA, sB, fr, w, rh, fz = slot_A[l0:l1], slot_B[l0:l1], frame[l0:l1], weight[l0:l1], rho[l0:l1], frozen[l0:l1]
+        m, fx = mass[p0:p1], fixed[p0:p1]
+        mus, kNs, kTs = mu[l0:l1], k_N[l0:l1], k_T[l0:l1]
+        _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, rhs[p0:p1], g_n[l0:l1], dg[l0:l1], mus, shift[l0:l1],
+                  cohesion_T[l0:l1], kNs, kTs, h, x[p0:p1], r[l0:l1], 0.0, 0.0, False, Bx, gbar, slip, branch, e,
+                  force, R, react, code, scratch)
+        J = J_work[:N * N].reshape((N, N))
+        _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
+        factor_star(J, factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1])
+        codes[l0:l1] = code[:L]
+        cached[s] = _cacheable(L, d, fz, code)
+
+
+def warm():
+    """Compile the kernels (2D and 3D) into numba's cache on a tiny star of each."""
+    for d in (2, 3):
+        q, L = 2 * d, 1
+        frame = np.eye(d)[None].copy()
+        args = dict(comp_off=np.array([0, q]), link_off=np.array([0, L]), slot_A=np.array([0]), slot_B=np.array([1]),
+                    frame=frame, weight=np.ones(L), rho=np.ones(L), frozen=np.zeros(L, bool), mass=np.ones(q),
+                    fixed=np.zeros(q, bool))
+        link = dict(g_n=np.zeros((L, d)), dg=np.zeros((L, d)), mu=np.zeros(L), shift=np.zeros(L),
+                    cohesion_T=np.zeros(L), k_N=np.ones(L), k_T=np.ones(L))
+        N = q + L * d
+        cache = dict(fac_off=np.array([0, N * N]), piv_off=np.array([0, 2 * N + 1]), factors=np.zeros(N * N),
+                     pivots=np.zeros(2 * N + 1, np.int64),
+                     codes=np.zeros(L, np.int8), cached=np.zeros(1, bool))
+        solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
+                    predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
+                    reaction=np.zeros(q), gbar_out=np.zeros((L, d)), g_mid=np.zeros((L, d)),
+                    status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64))
+        keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] != ["--warm"]:
+        sys.exit("usage: python -m dolfrag.solver.star_kernel --warm")
+    warm()
+    print("numba: star kernels compiled into the cache")

@@ -1,0 +1,292 @@
+"""The compiled star kernel (solver/star_kernel.py) against the numpy laws it compiles:
+interface/contact.py's Alart-Curnier residuals and each model's springs (interface/models.py,
+interface/laws.py), its Jacobian against finite differences, its LU, and the residual of
+every star it accepts in a run."""
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from dolfrag.config import load_case
+from dolfrag.interface import laws, models
+from dolfrag.interface.contact import contact_friction_residual
+from dolfrag.problem import Problem
+from dolfrag.run.driver import integrator
+from dolfrag.solver import star_kernel
+from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK
+from dolfrag.solver.semismooth import spring_coefficients
+from dolfrag.solver.star_kernel import FROZEN, REGULARISATION
+
+
+def _models(n, rng):
+    """Every breakable model, each with random link states covering its branches (sound,
+    damaged, broken; rigid, sprung, softened)."""
+    rccm = models.Rccm(n, 1e12, 4e11, 0.16, mu=0.3)
+    rccm.beta[:] = rng.choice([1.0, 0.5, 0.0], n) * rng.uniform(0.5, 1.0, n)
+    decoupled = models.RccmDecoupled(n, 1e12, 4e11, 4e6, 100.0, mu=0.3)
+    decoupled.beta[:] = rng.uniform(0, 1, n) * (rng.random(n) < 0.8)
+    soft = models.LinearSoftening(n, 4e6, 100.0, mu=0.3, k_open=1e13)
+    soft.delta_max[:] = rng.uniform(0, 1.2, n) * soft.delta_c
+    soft.sprung[:] = rng.random(n) < 0.6
+    threshold = models.Threshold(n, 4e6, 1e-5, mu=0.3)
+    threshold.lost[:] = rng.random(n) < 0.3
+    return {"rccm": rccm, "rccm_decoupled": decoupled, "linear_softening": soft, "threshold": threshold}
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_every_models_springs_are_the_secants_the_kernel_reads(d):
+    rng = np.random.default_rng(3)
+    n = 400
+    for name, model in _models(n, rng).items():
+        state = model.state_at(np.arange(n))
+        k_N, k_T = spring_coefficients(model, state, d)
+        g_N, g_T = rng.normal(scale=1e-5, size=n), rng.normal(scale=1e-5, size=(n, d - 1))
+        law = model.springs(g_N, g_T, state)
+        # the kernel's traction k_N <g_N>+, k_T g_T and tangent diag(k_N [g_N > 0], k_T):
+        # the same products, so equal to round-off
+        assert np.allclose(law.r_N, k_N * np.maximum(g_N, 0), rtol=1e-14, atol=0), name
+        assert np.allclose(law.r_T, k_T[:, None] * g_T, rtol=1e-14, atol=0), name
+        assert np.allclose(law.dr_N_dg_N, k_N * (g_N > 0), rtol=1e-14, atol=0), name
+        assert np.allclose(law.dr_T_dg_T, k_T[:, None, None] * np.eye(d - 1), rtol=1e-14, atol=0), name
+        assert not np.any(law.dr_N_dg_T) and not np.any(law.dr_T_dg_N), name
+        if name != "threshold":
+            assert (k_N > 0).any() and (k_N == 0).any(), name  # sound or sprung, and broken or rigid
+
+
+def test_the_lagged_secants_are_the_laws_traction_on_their_unloading_branch():
+    rng = np.random.default_rng(4)
+    n, d = 300, 3
+    all_models = _models(n, rng)
+    # RCCM below its damage threshold (beta stays beta_n): laws.rccm is the secant
+    rccm = all_models["rccm"]
+    beta = np.maximum(rccm.beta, 0.05)
+    k_N, k_T = spring_coefficients(rccm, beta, d)
+    scale = 0.3 * np.sqrt(rccm.w / beta / (rccm.C_N + rccm.C_T))  # Y' < w / beta
+    g_N, g_T = rng.uniform(-1, 1, n) * scale, rng.uniform(-1, 1, (n, d - 1)) * scale[:, None] / np.sqrt(2)
+    r_N, r_T, *_, beta_law = laws.rccm(g_N, g_T, beta, rccm.C_N, rccm.C_T, rccm.w)
+    assert np.array_equal(beta_law, beta)
+    assert np.allclose(r_N, k_N * np.maximum(g_N, 0), rtol=1e-14, atol=0)
+    assert np.allclose(r_T, k_T[:, None] * g_T, rtol=1e-14, atol=0)
+    # linear softening, sprung, inside its reached opening (unloading to the origin)
+    soft = all_models["linear_softening"]
+    delta_max = rng.uniform(0.1, 0.9, n) * soft.delta_c
+    k_N, k_T = spring_coefficients(soft, delta_max, d)
+    g_N, g_T = rng.uniform(-0.5, 0.5, n) * delta_max, rng.uniform(-0.4, 0.4, (n, d - 1)) * delta_max[:, None]
+    r_N, r_T, *_ = laws.linear_softening(g_N, g_T, delta_max, soft.sigma_c, soft.G_c)
+    assert np.allclose(r_N, k_N * np.maximum(g_N, 0), rtol=1e-12, atol=0)
+    assert np.allclose(r_T, k_T[:, None] * g_T, rtol=1e-12, atol=0)
+
+
+def _star(rng, d, k=5, L=9, fixed_comps=()):
+    """A random star of k copies and L links, O(1) data (the kernel is unit-free)."""
+    slot_A = rng.integers(0, k, L)
+    slot_B = (slot_A + rng.integers(1, k, L)) % k
+    frame = np.linalg.qr(rng.normal(size=(L, d, d)))[0]
+    q = k * d
+    fixed = np.zeros(q, bool)
+    fixed[list(fixed_comps)] = True
+    return dict(q=q, L=L, d=d, slot_A=slot_A, slot_B=slot_B, frame=np.ascontiguousarray(frame),
+                w=rng.uniform(0.5, 2, L), rho=rng.uniform(0.5, 2, L), frozen=np.zeros(L, bool),
+                m=rng.uniform(0.5, 2, q), fixed=fixed, rhs=rng.normal(size=q), g_n=rng.normal(size=(L, d)),
+                dg=rng.normal(size=(L, d)), mu=rng.uniform(0, 0.6, L) * (rng.random(L) < 0.8),
+                shift=rng.uniform(0, 1, L) * (rng.random(L) < 0.5),
+                cohesion_T=rng.uniform(0, 1, L) * (rng.random(L) < 0.3),
+                k_N=rng.uniform(0, 2, L) * (rng.random(L) < 0.7), k_T=rng.uniform(0, 2, L), h=0.3)
+
+
+def _evaluate(star, x, r, freeze=True):
+    """The kernel's _evaluate on one star: (R, scaled_m, scaled_c, gbar, code, branch, e)."""
+    q, L, d = star["q"], star["L"], star["d"]
+    out = dict(Bx=np.empty((L, d)), gbar=np.empty((L, d)), slip=np.empty((L, d)), branch=np.empty((L, 5)),
+               e=np.zeros((L, max(d - 1, 1))), force=np.empty(q), R=np.empty(q + L * d), reaction=np.empty(q),
+               code=np.empty(L, np.int8), scratch=np.empty(2 * d))
+    scaled = star_kernel._evaluate(**star, x=x, r=r, floor_m=0.0, floor_c=0.0, freeze=freeze, **out)
+    return out["R"], *scaled, out["gbar"], out["code"], out["branch"], out["e"]
+
+
+def _reference(star, x, r):
+    """The star residual from interface/contact.py and the springs' secants, numpy, in the
+    kernel's order of unknowns, with the scaled momentum and contact parts."""
+    q, L, d, h = star["q"], star["L"], star["d"], star["h"]
+    xs = x.reshape(-1, d)
+    Bx = np.einsum("lij,lj->li", star["frame"], xs[star["slot_B"]] - xs[star["slot_A"]])
+    slip = star["dg"] + h * Bx
+    rho = np.where(star["frozen"], FROZEN * star["rho"], star["rho"])
+    phi_N, phi_T, br = contact_friction_residual(r[:, 0], r[:, 1:], star["g_n"][:, 0] + slip[:, 0], slip[:, 1:],
+                                                 rho, rho, star["mu"], star["shift"], star["cohesion_T"])
+    gbar = star["g_n"] + 0.25 * h * Bx
+    gbar[:, 0] = np.where(br.contact, 0.75 * star["g_n"][:, 0] - 0.25 * star["dg"][:, 0], gbar[:, 0])
+    t = np.concatenate([(star["k_N"] * np.maximum(gbar[:, 0], 0))[:, None], star["k_T"][:, None] * gbar[:, 1:]], 1)
+    F = h * np.einsum("lij,li->lj", star["frame"], star["w"][:, None] * (t - r))
+    force = np.zeros_like(xs)
+    np.add.at(force, star["slot_B"], F)
+    np.add.at(force, star["slot_A"], -F)
+    force = force.ravel()
+    R_m = np.where(star["fixed"], 0.0, star["m"] * x - star["rhs"] + force)
+    phi = np.concatenate([phi_N[:, None], phi_T], axis=1)
+    scale_m = np.max(np.maximum(np.abs(star["rhs"]), np.maximum(np.abs(star["m"] * x), np.abs(force))))
+    terms = np.abs(star["g_n"]) + np.abs(star["dg"]) + h * np.abs(Bx)
+    scale_c = np.abs(r).max() + (star["rho"][:, None] * terms).max()
+    return np.concatenate([R_m, phi.T.ravel()]), np.abs(R_m).max(), scale_m, np.abs(phi).max(), scale_c, br, gbar
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_kernel_residual_is_the_contact_laws_and_the_springs_on_every_branch(d):
+    rng = np.random.default_rng(5 + d)
+    seen = np.zeros(6, dtype=int)
+    for trial in range(60):
+        star = _star(rng, d, fixed_comps=[1] if trial % 3 == 0 else [])
+        star["frozen"] = rng.random(star["L"]) < 0.1
+        x = rng.normal(size=star["q"]) * np.where(star["fixed"], 0.0, 1.0)
+        r = rng.normal(size=(star["L"], d)) * rng.choice([0.0, 1.0, 3.0], (star["L"], 1))
+        R, scaled_m, scaled_c, gbar, code, branch, e = _evaluate(star, x, r)
+        R_ref, R_m, scale_m, phi, scale_c, br, gbar_ref = _reference(star, x, r)
+        m_ref, c_ref = R_m / scale_m, phi / scale_c
+        # the same sums of O(1) terms in another order: equal to a few ulps
+        assert np.allclose(R, R_ref, rtol=0, atol=1e-13 * np.abs(R_ref).max())
+        assert np.isclose(scaled_m, m_ref, rtol=1e-12) and np.isclose(scaled_c, c_ref, rtol=1e-12)
+        assert np.allclose(gbar, gbar_ref, rtol=0, atol=1e-14)
+        # the pieces: the Branches of interface/contact.py
+        assert np.array_equal((code & CONTACT) > 0, br.contact) and np.array_equal((code & STICK) > 0, br.stick)
+        assert np.array_equal((code & SLIP) > 0, br.slip)
+        assert np.array_equal((code & PRESSED) > 0, br.slip & br.pressed)
+        assert np.array_equal((code & NEGATIVE) > 0, br.slip & (br.e[:, 0] < 0))
+        assert np.array_equal((code & SPRING) > 0, (gbar_ref[:, 0] > 0) & ~br.contact)
+        assert np.allclose(e[:, :d - 1], br.e, rtol=0, atol=1e-14)
+        seen += [br.contact.sum(), (~br.contact).sum(), br.stick.sum(), br.slip.sum(),
+                 (~br.stick & ~br.slip).sum(), (br.slip & br.pressed).sum()]
+    assert (seen > 10).all()  # every branch met many times
+
+
+def _unknowns(star, z):
+    q, L, d = star["q"], star["L"], star["d"]
+    return z[:q].copy(), np.ascontiguousarray(z[q:].reshape(d, L).T)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_star_jacobian_is_the_derivative_of_the_residual_on_each_piece(d):
+    rng = np.random.default_rng(11 + d)
+    checked = 0
+    for trial in range(80):
+        star = _star(rng, d, fixed_comps=[0, 1] if trial % 4 == 0 else [])
+        q, L = star["q"], star["L"]
+        N = q + L * d
+        z = rng.normal(size=N)
+        z[:q] *= ~star["fixed"]
+        x, r = _unknowns(star, z)
+        R, *_, code, branch, e = _evaluate(star, x, r)
+        J = np.empty((N, N))
+        star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
+                              star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
+                              code, branch, e, J, np.empty(3 * d * d))
+        eps = 1e-6
+        FD = np.empty((N, N))
+        crossed = False
+        for j in range(N):
+            dz = np.zeros(N)
+            dz[j] = eps
+            plus, minus = (_evaluate(star, *_unknowns(star, z + s * dz)) for s in (1, -1))
+            crossed |= not (np.array_equal(plus[4], code) and np.array_equal(minus[4], code))
+            FD[:, j] = (plus[0] - minus[0]) / (2 * eps)
+        if crossed:  # a kink within eps: no derivative to compare
+            continue
+        checked += 1
+        stick = (code & STICK) > 0
+        for i in range(d):  # the Newton matrix's regularisation of sticking links (by design)
+            at = q + i * L + np.flatnonzero(stick)
+            J[at, at] -= REGULARISATION
+        free = ~np.concatenate([star["fixed"], np.zeros(L * d, bool)])
+        # affine pieces: central differences exact to round-off (1e-10 / eps of O(1) terms);
+        # 3D slip (smooth): O(eps^2) besides
+        assert np.allclose(J[np.ix_(free, free)], FD[np.ix_(free, free)], rtol=0, atol=1e-7), trial
+        assert np.array_equal(J[~free], np.eye(N)[~free])  # prescribed rows: identity
+    assert checked > 40
+
+
+def test_lu_solves_like_lapack():
+    rng = np.random.default_rng(6)
+    for N in (1, 7, 30, 120):
+        A = rng.normal(size=(N, N)) + np.diag(rng.uniform(-3, 3, N))
+        A[:, 0] *= 1e-3  # pivoting needed
+        b = rng.normal(size=N)
+        LU, piv, y = A.copy(), np.empty(N, np.int64), b.copy()
+        star_kernel.lu_factor(LU, piv)
+        star_kernel.lu_solve(LU, piv, y)
+        expected = np.linalg.solve(A, b)
+        # both backward stable: agreement to condition x round-off
+        assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(A) * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
+    rng = np.random.default_rng(21 + d)
+    apart = 0
+    for trial in range(40):
+        star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
+        star["frozen"] = rng.random(star["L"]) < 0.15
+        q, L = star["q"], star["L"]
+        N = q + L * d
+        x, r = _unknowns(star, rng.normal(size=N) * np.concatenate([~star["fixed"], np.ones(L * d)]))
+        R, *_, code, branch, e = _evaluate(star, x, r)
+        J = np.empty((N, N))
+        star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
+                              star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
+                              code, branch, e, J, np.empty(3 * d * d))
+        store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
+        star_kernel.factor_star(J.copy(), store, index)
+        y = R.copy()
+        star_kernel.solve_star(store, index, y, np.empty(N))
+        apart += N - index[0]
+        expected = np.linalg.solve(J, R)
+        # both backward stable on the same matrix: agreement to condition x round-off
+        assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
+    assert apart > 40 * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
+
+
+@pytest.mark.parametrize("law", ["rccm", "linear_softening"])
+def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, monkeypatch):
+    # sound-bar with friction: the pulse reflects at the free end as tension and breaks links
+    options = {"rccm": ["interface.law=rccm", "interface.sigma_c=4e5"],
+               "linear_softening": ["interface.law=linear_softening", "interface.sigma_c=4e5", "interface.G_c=1"]}
+    case = load_case("sound-bar", ["mesh.size=0.006", "interface.mu=0.3", *options[law]])
+    integ = integrator(Problem.build(case, MPI.COMM_SELF))
+    solver = integ.interface
+    calls = []
+    solve = star_kernel.solve_stars
+
+    def recorded(*args):
+        solve(*args)
+        calls.append([a.copy() if isinstance(a, np.ndarray) else a for a in args])
+
+    monkeypatch.setattr(star_kernel, "solve_stars", recorded)
+    lay = solver.layout
+    checked = stalled = 0
+    for step in range(260):
+        integ.step()
+        if step % 20 != 19:
+            continue
+        args = calls[-1]
+        (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, rhs, x_in, g_n, dg, mu, shift,
+         cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:25]
+        x, r, status = args[31], args[32], args[36]
+        for s in range(lay.n_stars):
+            p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
+            if link_off[s + 1] == link_off[s]:
+                continue
+            star = dict(q=comp_off[s + 1] - comp_off[s], L=link_off[s + 1] - link_off[s], d=2, slot_A=slot_A[l],
+                        slot_B=slot_B[l], frame=frame[l], w=weight[l], rho=rho[l], frozen=frozen[l], m=mass[p],
+                        fixed=fixed[p], rhs=rhs[p], g_n=g_n[l], dg=dg[l], mu=mu[l], shift=shift[l],
+                        cohesion_T=cohesion_T[l], k_N=k_N[l], k_T=k_T[l], h=h)
+            _, R_m, scale_m, phi, scale_c, *_ = _reference(star, x[p], r[l])
+            scaled_m, scaled_c = R_m / max(scale_m, floor_m), phi / max(scale_c, floor_c)
+            if status[s] == star_kernel.CONVERGED:
+                # the numpy residual of the accepted iterate (scaled as the kernel scales it,
+                # with its floors) is below RTOL: 1.01 for the few ulps of another summation order
+                assert max(scaled_m, scaled_c) <= 1.01 * rtol, (step, s)
+                checked += 1
+            else:  # accepted after FALLBACK iterations: counted apart, within STALL or GIVE_UP
+                assert status[s] == star_kernel.STALLED
+                assert max(scaled_m, scaled_c) <= 1.01 * star_kernel.STALL or (
+                    scaled_c <= 1.01 * star_kernel.STALL and scaled_m <= 1.01 * star_kernel.GIVE_UP)
+                stalled += 1
+    assert checked > 10 * lay.n_stars and stalled < 0.01 * checked
+    assert (integ.model.damage() > 0).sum() > 10  # the damaged phase was checked too
