@@ -69,7 +69,8 @@ def run(case, out, quiet=False, comm=None, resume=False):
     ctx = RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan))
     history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
     stateful = {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
-                "stretch": stretch, "viscosity": getattr(integ, "viscosity", None), "fields_file": output.vtk,
+                "star_layout": getattr(integ.interface, "layout", None), "stretch": stretch,
+                "viscosity": getattr(integ, "viscosity", None), "fields_file": output.vtk,
                 **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:

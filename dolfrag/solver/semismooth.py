@@ -73,6 +73,9 @@ class StarLayout:
     the star components and star links, each link's copies, frame, weight, step
     stiffness rho (Pa/m) and whether both its copies are prescribed (frozen), and
     the cache of each star's last Jacobian factors."""
+    # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
+    # resumed run takes the same iterates as an uninterrupted one
+    STATE = ("factors", "pivots", "codes", "cached")
 
     def __init__(self, stars, links, frame, m, h):
         d = stars.gdim
