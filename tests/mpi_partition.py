@@ -32,7 +32,7 @@ domains = []
 build = mesh.build
 
 
-def build_by_rule(geometry, size, comm, **kwargs):  # the runner calls mesh.build: give it the rule
+def build_by_rule(geometry, size, comm, owner_rule_given=None, **kwargs):  # the run calls mesh.build: give it the rule
     if comm.size == 1:  # a serial copy (homogenise.bar_modulus's static push): nothing to partition
         return build(geometry, size, comm, **kwargs)
     domains.append(build(geometry, size, comm, owner_rule=owner_rule, **kwargs))
