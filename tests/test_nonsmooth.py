@@ -137,7 +137,7 @@ def test_a_step_newton_cannot_finish_fails_clearly_and_saves_the_state(tmp_path,
 
 def test_internal_friction_keeps_the_pressed_loaded_end_of_be12_whole(tmp_path):
     # BE12's 58 MPa pulse puts 29 MPa of shear on 45-degree facets, above the RCCM shear
-    # peak sigma_c = 28 MPa: with the seed's law (mu_i = 0) the loaded end cracks while
+    # peak sigma_c = 28 MPa: with the reference paper's law (mu_i = 0) the loaded end cracks while
     # the pulse enters (measured: first cut 17 us, 105 mm from the free end, h = 7 mm).
     # The same facets carry 29 MPa of pressure, so with mu_i = 1 the shear driving damage
     # is ~0 there and nothing may break before the reflected tension (> 55 us) arrives.

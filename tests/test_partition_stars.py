@@ -1,4 +1,4 @@
-"""Vertex stars split by the partition (DESIGN.md §4-5): cracks that run exactly along
+"""Vertex stars split by the partition (docs/method.md, "Parallel layout"): cracks that run exactly along
 partition boundaries give the fragments and energies of one rank.
 
 The partition is imposed (mesh.build's owner_rule, through tests/mpi_partition.py) on
