@@ -33,7 +33,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --disable-pip-version-check -e ".[dev]" "numpy<2"
 	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, numba, dolfrag; print('dolfinx', dolfinx.__version__, 'numba', numba.__version__)"
 	@echo "Compiling the star kernels (numba, once: about half a minute)..."
-	$(PY) -m dolfrag.solver.star_kernel --warm
+	@$(PY) -c "from dolfrag.solver import star_kernel; star_kernel.warm()"
 	@touch $@
 
 demo: install

@@ -16,7 +16,7 @@ C_N = C_T = sigma_c^2 / G_c = 4e12 Pa/m that gives it the peak sigma_c (with C_N
 instead, its peak sqrt(C_N w) would be 42-76 MPa, and its cohesive time below one step
 on these meshes). Each run lasts until
 2.5 times the time the uniform stretch takes to reach sigma_c, plus 10 cohesive times
-E G_c / (c sigma_c^2). A run passes if no vertex star is left unconverged (the runner's
+E G_c / (c sigma_c^2). A run passes if no vertex star is left unconverged (the run's
 ConvergenceError). Prints one table row per run: steps, broken links, links at least half
 damaged (RCCM counts a link broken only at beta = 0.01, far in its tail), star solves
 accepted within GIVE_UP (stalled), the most Newton iterations of a step, CPU time.

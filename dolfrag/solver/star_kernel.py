@@ -13,10 +13,9 @@ next step's prediction (solver/active_set.py).
 
 The springs of every model are secants lagged by one step (interface/models.py): a link's
 traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the step
-(semismooth.spring_coefficients). Run ``python -m dolfrag.solver.star_kernel --warm`` to
-compile the kernels into numba's cache (``make install`` does).
+(semismooth.spring_coefficients). ``warm()`` compiles the kernels into numba's cache
+(``make install`` calls it).
 """
-import sys
 
 import numpy as np
 from numba import njit
@@ -745,10 +744,3 @@ def warm():
                     reaction=np.zeros(q), gbar_out=np.zeros((L, d)), g_mid=np.zeros((L, d)),
                     status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
-
-
-if __name__ == "__main__":
-    if sys.argv[1:] != ["--warm"]:
-        sys.exit("usage: python -m dolfrag.solver.star_kernel --warm")
-    warm()
-    print("numba: star kernels compiled into the cache")
