@@ -40,6 +40,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag.solver import star_kernel
+from dolfrag.solver.energy import reaction_work
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
 from dolfrag.solver.star_kernel import CYCLE, GIVE_UP, REGULARISATION, STALL  # noqa: F401
@@ -236,19 +237,13 @@ class StarNewton:
     def account(self, g_before, g_after):
         """Book the work the reactions of this step did, given the global-frame jumps
         g_{n-1} and g_{n+1} (n_links, gdim): -sum weight r . (g_{n+1} - g_{n-1}) / 2, its
-        share of the discrete energy balance (solver/imex.py). The part of the contact
-        reaction r~_N = r_N + shift and the friction mu r~_N is dissipated by contact; the
-        cohesive part (-shift, and the shear cohesion's share of r_T) is stored in the
-        rigid links of the model (model.absorb)."""
+        share of the discrete energy balance (solver/imex.py), split by
+        energy.reaction_work: the cohesion's work is stored in the rigid links of the
+        model (model.absorb), the rest is dissipated by contact and friction."""
         dg = np.einsum("lij,lj->li", self._frame, g_after - g_before)
-        r_N, r_T = self.r[:, 0], self.r[:, 1:]
-        pressed = np.maximum(r_N + self._shift, 0.0)
-        radius = self._mu * pressed + self._cohesion_T
-        friction_share = np.divide(self._mu * pressed, radius, out=np.ones_like(radius), where=radius > 0)
-        slip_work = np.sum(r_T * dg[:, 1:], axis=1)
-        weight = self.jump.links.weight
-        self.contact_dissipated -= 0.5 * weight @ ((r_N + self._shift) * dg[:, 0] + friction_share * slip_work)
-        self.model.absorb(-0.5 * (-self._shift * dg[:, 0] + (1 - friction_share) * slip_work))
+        dissipated, stored = reaction_work(self.r[:, 0], self.r[:, 1:], dg, self._shift, self._cohesion_T)
+        self.contact_dissipated += 0.5 * self.jump.links.weight @ dissipated
+        self.model.absorb(0.5 * stored)
 
 
 class ConvergenceError(RuntimeError):

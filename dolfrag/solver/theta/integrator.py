@@ -289,7 +289,7 @@ class Theta:
             self.model.store(every, state[:, None], np.ones_like(every, dtype=bool), g[:, :1], g[:, None, 1:])
             # split as the star Newton does: contact and friction dissipate, the cohesive
             # part of a rigid link's constraint is stored in it (after model.store)
-            dissipated, stored = reaction_work(r[:, 0], r[:, 1:], dg, step.shift, step.mu, step.cohesion_T)
+            dissipated, stored = reaction_work(r[:, 0], r[:, 1:], dg, step.shift, step.cohesion_T)
             self.interface.contact_dissipated += w @ dissipated
             self.model.absorb(stored)
             self.r = r
