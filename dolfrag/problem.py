@@ -2,7 +2,7 @@
 supports and load, built once by ``Problem.build(case, comm)``.
 
 A Problem holds no time-stepping state but the bars' (rebar.Rebars keeps its plastic strains
-beside its geometry): the integrators (solver/imex.py, solver/theta.py) are built from it
+beside its geometry): the integrators (solver/imex.py, solver/theta/) are built from it
 and carry u, v, t and the interface model's state.
 """
 import math
