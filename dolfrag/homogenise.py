@@ -57,12 +57,16 @@ def bar_modulus(case):
     opposite (free) face; E_eff = p L / |mean u_x(free face)|. With rollers on the long
     faces this is uniaxial_strain_modulus; with free long faces, the bar modulus that sets
     the wave speed of a Hopkinson specimen. Serial on every calling rank (COMM_SELF; gmsh
-    is deterministic: the same mesh a parallel run distributes)."""
+    is deterministic: the same mesh a parallel run distributes). None when the opposite face
+    is itself supported: there is no free end to push."""
+    loaded = case.load.boundary
+    free_face = "right" if loaded == "left" else "left"
+    supports_ = case.supports
+    if free_face in (*supports_.clamped, *supports_.rollers, *supports_.simple):
+        return None
     domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF)
     space = spaces.create(domain)
     K = _stiffness_with_springs(case, space, domain)
-    loaded = case.load.boundary
-    free_face = "right" if loaded == "left" else "left"
     f = loads.unit_pressure_vector(space, domain, free_face).x.array
     d = space.gdim
     held = space.boundary_dofs(domain.facet_tags, domain.boundary_tag(loaded))
