@@ -435,7 +435,7 @@ def predict_slab(case, sets, measured, args, tmp):
     cost = fit_cost(singles)
     check = split_fit(measured) if args.clock == "cpu" else None
     if check:
-        print(f"\ncross-check, per-rank compute of the measured runs (cells / P, ms/step): "
+        print("\ncross-check, per-rank compute of the measured runs (cells / P, ms/step): "
               + ", ".join(f"({n:,.0f}, {1e3 * t:.2f})" for n, t in check[2])
               + f": t0 = {1e3 * check[0]:.3f} ms, t1 = {1e9 * check[1]:.0f} ns")
     production = load_case(case, sets + PRODUCTION).geometry

@@ -67,7 +67,7 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
         shape = ["geometry.kind=box", f"geometry.thickness={W}", 'supports.rollers=["bottom","top","front","back"]']
     case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *shape, *LAWS[law]])
     problem = Problem.build(case, comm)
-    domain, space, links, integ = problem.domain, problem.space, problem.links, integrator(problem)
+    domain, space, integ = problem.domain, problem.space, integrator(problem)
     n_cells = space.mesh.topology.index_map(dim).size_global
     if scheme == "theta":
         return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),

@@ -49,9 +49,9 @@ def fragmenting_runs(tmp_path_factory):
             "--set", "output.figures=true"]
     mpirun([*args, "--out", out / "one"], n=1)
     mpirun([*args, "--out", out / "two"], n=2)
-    for run in ("one", "two"):
-        assert {"fields.pvd", "figures", "links.csv"} <= {p.name for p in (out / run).iterdir()}
-        assert (out / run / "figures" / "damage.png").stat().st_size > 0
+    for ranks in ("one", "two"):
+        assert {"fields.pvd", "figures", "links.csv"} <= {p.name for p in (out / ranks).iterdir()}
+        assert (out / ranks / "figures" / "damage.png").stat().st_size > 0
     runs = Runs((history(out / r), json.loads((out / r / "summary.json").read_text())) for r in ("one", "two"))
     runs.out = out
     return runs

@@ -106,7 +106,7 @@ def _evaluate(star, x, r, freeze=True):
 def _reference(star, x, r):
     """The star residual from interface/contact.py and the springs' secants, numpy, in the
     kernel's order of unknowns, with the scaled momentum and contact parts."""
-    q, L, d, h = star["q"], star["L"], star["d"], star["h"]
+    d, h = star["d"], star["h"]
     xs = x.reshape(-1, d)
     Bx = np.einsum("lij,lj->li", star["frame"], xs[star["slot_B"]] - xs[star["slot_A"]])
     slip = star["dg"] + h * Bx

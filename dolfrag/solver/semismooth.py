@@ -177,7 +177,7 @@ class StarNewton:
         Updates the model's state (damage), the contact reactions and the reactions of
         the prescribed components (``reaction``, N).
         """
-        lay, h, d = self.layout, self.h, self.stars.gdim
+        lay, h = self.layout, self.h
         frame = lay.frame
         g_loc = np.einsum("lij,lj->li", frame, g_n[lay.links])
         dg_loc = h * np.einsum("lij,lj->li", frame, self.jump(v)[lay.links])
