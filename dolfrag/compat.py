@@ -39,6 +39,11 @@ def ghost_owners(index_map):
     return index_map.owners
 
 
+def global_indices(index_map, local):
+    """Global numbers of the ``local`` (owned or ghost) indices of ``index_map``."""
+    return index_map.local_to_global(np.asarray(local, dtype=np.int32))
+
+
 def adjacency_int32(data, offsets):
     return dolfinx.cpp.graph.AdjacencyList_int32(np.asarray(data, np.int32),
                                                  np.asarray(offsets, np.int32))

@@ -116,7 +116,8 @@ def _rebars(case, space, bulk_ops, comm):
     bars.add_mass(bulk_ops.m.x.array)
     # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
     # mass, stays an upper bound
-    bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + bars.stiffness_bound(bulk_ops.m.x.array))
+    omega2_bars = bars.stiffness_bound(bulk_ops.m.x.array, space.V.dofmap.index_map)
+    bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + omega2_bars)
     return bars
 
 

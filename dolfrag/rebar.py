@@ -53,8 +53,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from mpi4py import MPI
 
+from dolfrag import compat
 from dolfrag.rebar_layout import barycentric, nodes
 
 
@@ -327,19 +327,29 @@ class Rebars:
         own = self._own
         return self._work + 0.5 * self._f_last @ (u_b[own] - u_a[own]) - self.dissipated
 
-    def stiffness_bound(self, m):
+    def stiffness_bound(self, m, index_map):
         """An upper bound (1/s^2) of the largest eigenvalue of M^-1 K_bars at any state,
-        to add to the bulk's omega_max^2 (Weyl) for the explicit step. Collective.
+        to add to the bulk's omega_max^2 (Weyl) for the explicit step. m: the lumped mass
+        of every local dof component (kg); index_map: the space's dof index map. Collective.
 
         G_j <= (E_s A / L) I in every state (the material part is E_s A / L or 0 along n,
         the geometric N / |c| < E_s A / L across it), so K_bars <= sum_j (E_s A / L)
         C_j^T C_j: d copies, one per axis, of a scalar operator whose eigenvalues Gershgorin
-        bounds on the segments' coupling matrix."""
-        n = len(self.L)
-        first_axis = self.comps.reshape(n, 2 * (self.d + 1), self.d)[:, :, 0]
-        S = sp.csr_matrix(((np.sqrt(self.E_s * self.area / self.L)[:, None] * self.weights).ravel(),
-                           first_axis.ravel(), np.arange(0, first_axis.size + 1, first_axis.shape[1])),
-                          shape=(n, len(m)))
-        G = (S.multiply(1 / m[None, :]) @ S.T).tocsr()
-        local = np.asarray(abs(G).sum(axis=1)).max(initial=0.0)
-        return self.comm.allreduce(float(local), op=MPI.MAX)
+        bounds on the segments' coupling matrix. Two segments are coupled through the dofs
+        they share, which may sit on different ranks: the matrix is formed on rank 0 from
+        every rank's counted segments, so the bound does not depend on the partition."""
+        first_axis = self.comps.reshape(len(self.L), 2 * (self.d + 1), self.d)[self.counted][:, :, 0]
+        S = np.sqrt(self.E_s * self.area / self.L)[self.counted, None] * self.weights[self.counted]
+        dofs = compat.global_indices(index_map, first_axis.ravel() // self.d)
+        parts = self.comm.gather((dofs, S.ravel(), m[first_axis.ravel()]), root=0)
+        bound = None
+        if self.comm.rank == 0:
+            dofs, S, m_dofs = (np.concatenate(p) for p in zip(*parts))
+            cols, column = np.unique(dofs, return_inverse=True)
+            width = first_axis.shape[1]
+            S = sp.csr_matrix((S, column, np.arange(0, len(S) + 1, width)), shape=(len(S) // width, len(cols)))
+            m_cols = np.zeros(len(cols))
+            m_cols[column] = m_dofs
+            G = (S.multiply(1 / m_cols[None, :]) @ S.T).tocsr()
+            bound = float(np.asarray(abs(G).sum(axis=1)).max(initial=0.0))
+        return self.comm.bcast(bound, root=0)

@@ -1,7 +1,9 @@
-"""Under mpirun -n 2: a built-in case run with a geometric partition (mesh.build's owner_rule):
-stripes across x, of width W, alternately on ranks 0 and 1 (by cell centroid).
+"""Under mpirun -n 2: a built-in case run with an imposed partition (mesh.build's owner_rule):
+stripes across x, of width W, alternately on ranks 0 and 1 (by cell centroid), or, with
+"random:SEED", each cell on a rank drawn at random (a partition no graph partitioner would
+give: many small pieces, stars split everywhere).
 
-argv: case, output directory, W (m), then "section.key=value" overrides. Besides the run's
+argv: case, output directory, W (m) or random:SEED, then "section.key=value" overrides. Besides the run's
 own outputs, rank 0 writes
 partition.json: the number of vertex stars split between ranks (a star is split when the
 owner of its vertex holds one of its cells as a ghost, i.e. another rank owns that cell)
@@ -20,12 +22,14 @@ import dolfrag
 from dolfrag import mesh, space as spaces
 from dolfrag.config import load_case
 
-case_name, out, stripe = sys.argv[1], sys.argv[2], float(sys.argv[3])
+case_name, out, rule = sys.argv[1], sys.argv[2], sys.argv[3]
 overrides = sys.argv[4:]
 
 
 def owner_rule(centroids):
-    return np.floor(centroids[:, 0] / stripe).astype(int) % 2
+    if rule.startswith("random:"):
+        return np.random.default_rng(int(rule[7:])).integers(0, 2, len(centroids))
+    return np.floor(centroids[:, 0] / float(rule)).astype(int) % 2
 
 
 domains = []
