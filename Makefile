@@ -31,7 +31,7 @@ system-packages:
 $(VENV)/.installed: pyproject.toml
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -e ".[dev]" "numpy<2"
-	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, numba, dolfrag; print('dolfinx', dolfinx.__version__, 'numba', numba.__version__)"
+	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, numba, cantera, dolfrag; print('dolfinx', dolfinx.__version__, 'numba', numba.__version__, 'cantera', cantera.__version__)"
 	@echo "Compiling the star kernels (numba, once: about half a minute)..."
 	@$(PY) -c "from dolfrag.solver import star_kernel; star_kernel.warm()"
 	@touch $@

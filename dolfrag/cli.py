@@ -7,7 +7,9 @@
 
 `loads` plots the case's pressure p(t) over [0, time.end] (default PNG:
 results/<case name>/load.png) and prints the PNG path, then the signal's peak (Pa)
-and its time (s), impulse (Pa s) and duration (s) as `name = value` lines.
+and its time (s), impulse (Pa s) and duration (s) as `name = value` lines; for an
+h2-air load also the gas states behind it (AICC, CJ detonation, reflected pressure,
+Taylor plateau, burnt-gas sound speed, acoustic frequency) beside published values.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
 and one line naming the key, the value and what is allowed. `run` refuses an --out
@@ -26,7 +28,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfrag import guards, outdir
+from dolfrag import gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.run.driver import run
 from dolfrag.run.signals import EXIT_CODES
@@ -56,8 +58,8 @@ def _parser():
 
 
 def _plot_load(case, out, comm):
-    """Draw the case's p(t) over [0, time.end] and print the path, peak, impulse, duration."""
-    from dolfrag import loads
+    """Draw the case's p(t) over [0, time.end] and print the path, peak, impulse, duration
+    (and an h2-air load's gas states)."""
     from dolfrag.post.figures import signal_png
     if case.load.kind != "pressure":
         raise CaseError(f"load.kind = {case.load.kind!r}: no pressure signal to plot (only load.kind = 'pressure')")
@@ -70,6 +72,36 @@ def _plot_load(case, out, comm):
     if comm.rank == 0:
         print(f"{path}\npeak_Pa = {peak:.6g}\npeak_time_s = {peak_time:.6g}\n"
               f"impulse_Pa_s = {impulse:.6g}\nduration_s = {duration:.6g}")
+        if case.load.signal == "h2-air":
+            print(_h2_air_lines(loads.h2_air_numbers(case.load)))
+
+
+def _h2_air_lines(numbers):
+    """`name = value  # note` lines of an h2-air load's numbers (loads.h2_air_numbers), SI,
+    pressures also in bar, beside gas.PUBLISHED (stoichiometric H2-air at 1 atm, 298 K)."""
+    bar, ref = 1e-5, gas.PUBLISHED
+    P_CJ, published = numbers["P_CJ_Pa"], "stoichiometric at 1 atm, published"
+    notes = {
+        "P_AICC_Pa": f"{numbers['P_AICC_Pa'] * bar:.3f} bar absolute; {published} {ref['P_AICC_Pa'] * bar:.0f} bar",
+        "T_AICC_K": "adiabatic isochoric complete combustion",
+        "c_b_m_s": "burnt gas (AICC), equilibrium sound speed",
+        "frequency_Hz": "c_b / (2 room_length)",
+        "D_CJ_m_s": f"{published} {ref['D_CJ_m_s']:.0f} m/s",
+        "P_CJ_Pa": f"{P_CJ * bar:.2f} bar absolute; {published} {ref['P_CJ_Pa'] * bar:.1f} bar",
+        "T_CJ_K": "",
+        "u_CJ_m_s": "burnt gas velocity behind the CJ front",
+        "P_reflected_Pa": f"{numbers['P_reflected_Pa'] * bar:.2f} bar absolute = {numbers['P_reflected_Pa'] / P_CJ:.2f}"
+                          f" P_CJ; usual estimate {ref['reflected_per_P_CJ']} P_CJ",
+        "T_reflected_K": "",
+        "P_Taylor_Pa": f"{numbers['P_Taylor_Pa'] * bar:.2f} bar absolute = {numbers['P_Taylor_Pa'] / P_CJ:.3f} P_CJ;"
+                       f" usual estimate {ref['Taylor_per_P_CJ']} P_CJ",
+        "peak_overpressure_Pa": "the signal's level: see docs/loads.md",
+        "plateau_overpressure_Pa": "(1 - heat_loss)(P_AICC - p0)",
+        "decay_s": "", "damping_s": ""}
+    head = (f"# h2-air, {numbers['h2_fraction']:g} H2 by volume, {numbers['regime']}, T0 = {numbers['T0_K']:g} K, "
+            f"p0 = {numbers['p0_Pa']:g} Pa (Cantera {numbers['cantera']}, {numbers['mechanism']})")
+    return "\n".join([head] + [f"{name} = {numbers[name]:.6g}" + (f"  # {note}" if note else "")
+                                for name, note in notes.items() if name in numbers])
 
 
 def main(argv=None):
@@ -91,6 +123,7 @@ def main(argv=None):
                 print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
             return 0
         case = load_case(args.case, args.set)
+        loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
         if args.command == "loads":
             _plot_load(case, args.out, comm)
             return 0

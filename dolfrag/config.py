@@ -24,7 +24,7 @@ Example::
 
     [load]
     boundary = "left"
-    signal = "triangular"        # | "friedlander" | "deflagration" | "detonation" | "table"
+    signal = "triangular"        # | "friedlander" | "deflagration" | "detonation" | "h2-air" | "table"
     peak = 1.0e6                 # Pa, positive pushes into the body
     rise = 1.0e-5                # s
     duration = 2.0e-5            # s
@@ -62,7 +62,8 @@ from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
 
 GEOMETRY_KINDS = ("rectangle", "box", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "table")
+SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", "table")
+REGIMES = ("deflagration", "detonation")  # of an h2-air explosion
 LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
 LAWS = tuple(_LAW_REGISTRY)
@@ -97,6 +98,7 @@ class _Spec:
     unit: str = ""
     choices: tuple = ()
     when: tuple = ()          # (discriminator field, values...): the key exists only then
+    optional_for: tuple = ()  # discriminator values for which the key may be absent (None)
     suffixes: tuple = ()      # allowed file suffixes for kind "path"
 
     def describe(self) -> str:
@@ -187,6 +189,8 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
             out[name] = None
         elif name in raw:
             out[name] = _convert(key, raw[name], spec, base)
+        elif spec.optional_for and out[spec.when[0]] in spec.optional_for:
+            out[name] = None
         elif spec.default is _REQ:
             needed = f" (required when {spec.condition(prefix)})" if spec.when else ""
             raise CaseError(f"missing key {key}{needed}: {spec.describe()}")
@@ -200,9 +204,13 @@ _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several f
 _IMPORTED = ("kind", "file")
 _PRESSURE = ("kind", "pressure")
 _SHAPED = ("signal", "triangular", "friedlander", "deflagration", "detonation")
-_RISING = ("signal", "triangular", "deflagration")
+_TIMED = _SHAPED + ("h2-air",)
+_RISING = ("signal", "triangular", "deflagration", "h2-air")
 _OSCILLATING = ("signal", "deflagration", "detonation")
 _DETONATION = ("signal", "detonation")
+_H2_AIR = ("signal", "h2-air")
+_REVERBERATING = _DETONATION + ("h2-air",)
+_GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.h2_air_shape)
 _RCCM = ("law", "rccm")
 _STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
 _FRICTIONAL = ("law", "rccm", "rccm_decoupled", "threshold", "linear_softening")
@@ -309,6 +317,11 @@ class Load:
     detonation: spike `peak` at t = 0 decaying (e-folding time `decay`) to `plateau`, with
     reverberations (frequency, amplitude relative to plateau, damping time) and an optional
     local peak, all times (1 - t/duration).
+    h2-air: a hydrogen-air explosion (docs/loads.md), the deflagration or detonation shape
+    (`regime`) with its levels computed from the mixture (dolfrag/gas.py: h2_fraction, T0, p0),
+    the overpressures reduced by `heat_loss`, the acoustic frequency c_b / (2 room_length);
+    `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`
+    (detonation; defaults loads.h2_air_shape).
     table: p(t) from a CSV file (columns t [s], p [Pa]), parsed into `t` and `p`.
     Spatial profile: uniform, or region_factor x p(t) on the facets whose midpoint is in the
     box [region_min, region_max] (give all three keys or none).
@@ -318,22 +331,37 @@ class Load:
     boundary: str | None = _f("str", when=_PRESSURE)                 # a geometry boundary
     signal: str | None = _f("str", "triangular", choices=SIGNALS, when=_PRESSURE)  # one of SIGNALS
     peak: float | None = _f("float", bounds=">= 0", unit="Pa", when=_SHAPED)      # >= 0
-    rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING)   # >= 0
-    duration: float | None = _f("float", bounds="> 0", unit="s", when=_SHAPED)    # >= rise
+    rise: float | None = _f("float", 0.0, bounds=">= 0", unit="s", when=_RISING, optional_for=_GAS)   # >= 0
+    duration: float | None = _f("float", bounds="> 0", unit="s", when=_TIMED)     # >= rise
     # friedlander decay coefficient; >= -1 keeps the maximum at t = 0 (loads.friedlander_alpha
     # gives it from the impulse ratio i / (peak duration), docs/loads.md)
     alpha: float | None = _f("float", bounds=">= -1", when=("signal", "friedlander"))
     # oscillations; amplitude relative to the mean pressure (deflagration) or to the plateau
     # (detonation), <= 1 keeps p >= 0
     frequency: float | None = _f("float", bounds="> 0", unit="Hz", when=_OSCILLATING)
-    amplitude: float | None = _f("float", bounds=">= 0, <= 1", when=_OSCILLATING)
+    amplitude: float | None = _f("float", bounds=">= 0, <= 1", when=_OSCILLATING + ("h2-air",),
+                                   optional_for=_GAS)
     plateau: float | None = _f("float", bounds=">= 0", unit="Pa", when=_DETONATION)  # <= peak
-    decay: float | None = _f("float", bounds="> 0", unit="s", when=_DETONATION)     # spike e-folding
-    damping: float | None = _f("float", bounds="> 0", unit="s", when=_DETONATION)   # oscillation e-folding
+    # spike e-folding, oscillation e-folding
+    decay: float | None = _f("float", bounds="> 0", unit="s", when=_REVERBERATING, optional_for=_GAS)
+    damping: float | None = _f("float", bounds="> 0", unit="s", when=_REVERBERATING, optional_for=_GAS)
     # detonation's local peak: extra height (0: none), centre time and full width, in [0, duration]
     local_peak: float | None = _f("float", 0.0, bounds=">= 0", unit="Pa", when=_DETONATION)
     local_time: float | None = _f("float", None, bounds=">= 0", unit="s", when=_DETONATION)
     local_width: float | None = _f("float", None, bounds="> 0", unit="s", when=_DETONATION)
+    # h2-air: H2 volume fraction in H2-air (air O2:N2 = 1:3.76), between the lean limit of a
+    # complete burn and well past stoichiometric (0.296); the explosion's regime
+    h2_fraction: float | None = _f("float", bounds=">= 0.1, <= 0.6", when=_H2_AIR)
+    regime: str | None = _f("str", choices=REGIMES, when=_H2_AIR)
+    # initial (ambient) state of the mixture: a room's air; within these bounds every state
+    # computed (the reflected shock's is the hottest) stays below 3500 K, the upper end of
+    # the thermodynamic data (gas.py)
+    T0: float | None = _f("float", 293.15, bounds=">= 250, <= 400", unit="K", when=_H2_AIR)
+    p0: float | None = _f("float", 101325.0, bounds=">= 5e4, <= 2e5", unit="Pa", when=_H2_AIR)
+    # share of the AICC overpressure lost to the walls (0: the adiabatic bound)
+    heat_loss: float | None = _f("float", 0.0, bounds=">= 0, < 1", when=_H2_AIR)
+    # length of the room along which the burnt gas resonates, f = c_b / (2 room_length)
+    room_length: float | None = _f("float", bounds="> 0", unit="m", when=_H2_AIR)
     file: Path | None = _f("path", when=("signal", "table"))         # absolute Path of the CSV
     region_min: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # lower corner of the box
     region_max: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # upper corner
@@ -605,7 +633,9 @@ def _check_stretch(case: Case) -> None:
 
 def _check_load(load: Load, geometry: Geometry) -> None:
     """Rules linking the keys of [load] (and the region to the geometry's dimension)."""
-    if load.signal == "deflagration":
+    if load.signal == "h2-air":
+        _check_h2_air(load)
+    if load.signal == "deflagration" or (load.signal == "h2-air" and load.regime == "deflagration"):
         if load.rise <= 0:
             raise CaseError(f"load.rise = {load.rise!r}: must be > 0 for a deflagration (s)")
         if load.duration <= load.rise:
@@ -645,6 +675,20 @@ def _check_load(load: Load, geometry: Geometry) -> None:
         if not all(lo < hi for lo, hi in zip(load.region_min, load.region_max)):
             raise CaseError(f"load.region_max = {_show(list(load.region_max))}: every coordinate must "
                             f"be > load.region_min = {_show(list(load.region_min))} (m)")
+
+
+def _check_h2_air(load: Load) -> None:
+    """The keys of an h2-air load that belong to one regime only."""
+    only = {"deflagration": ("rise",), "detonation": ("decay", "damping")}
+    for regime, names in only.items():
+        for name in names:
+            value = getattr(load, name)
+            if regime != load.regime and value is not None:
+                raise CaseError(f"load.{name} = {value!r}: only allowed when load.regime is {regime!r} "
+                                f"(--set load.{name}= removes it)")
+    if load.regime == "deflagration" and load.rise is None:
+        raise CaseError("missing key load.rise (required when load.regime is 'deflagration'): "
+                        "must be a number > 0 (s)")
 
 
 def _build(raw: dict, source: Path) -> Case:

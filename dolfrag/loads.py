@@ -7,14 +7,26 @@ Each signal is a pure function of its parameters (SI units) returning a vectoris
 t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md).
 The spatial profile is uniform on the loaded boundary, optionally times ``factor`` in a box
 (a local over-pressure): one load vector times one signal.
+
+An "h2-air" load is the deflagration or detonation shape with its levels computed from the
+gas mixture (``h2_air_shape``, dolfrag/gas.py): the functions here taking a config.Load
+accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
+called collectively first, computes them on rank 0 for every rank.
 """
+from dataclasses import asdict, replace
 from functools import reduce
 
 import numpy as np
 import ufl
 from scipy.optimize import brentq
 
-from dolfrag import compat
+from dolfrag import compat, gas
+
+# h2-air defaults for the keys a case leaves out (docs/loads.md, "Hydrogen-air explosion"):
+# the oscillation's amplitude (-), relative to the mean pressure (deflagration) or to the
+# AICC plateau (detonation); the reverberations' e-folding time in acoustic periods 1/f
+H2_AIR_AMPLITUDE = {"deflagration": 0.1, "detonation": 0.3}
+H2_AIR_DAMPING_PERIODS = 3.0
 
 
 def triangular(peak, rise, duration):
@@ -125,8 +137,56 @@ def detonation(peak, plateau, decay, duration, frequency, amplitude, damping,
     return p
 
 
-def signal(load):
-    """The p(t) (Pa, vectorised over t in s) of a config.Load."""
+def acoustic_frequency(sound_speed, length):
+    """f = c / (2 L) (Hz): the fundamental of gas of sound speed c (m/s) between two rigid
+    walls L (m) apart (the first longitudinal mode of a closed room)."""
+    return sound_speed / (2.0 * length)
+
+
+def h2_air_shape(load, comm=None):
+    """The deflagration or detonation config.Load (``load.regime``) of an h2-air load; any
+    other load unchanged. Overpressures (Pa), the mixture's gas.Explosion E, p0 its initial
+    pressure, eta = ``heat_loss``, L = ``room_length``:
+
+    deflagration: peak (1 - eta)(E.P_AICC - p0), frequency E.c_b / (2 L), rise and duration
+    as given, amplitude as given or H2_AIR_AMPLITUDE;
+    detonation: peak E.P_reflected - p0 (the spike is too short to lose heat), plateau
+    (1 - eta)(E.P_AICC - p0), frequency E.c_b / (2 L), decay as given or L / E.D_CJ (the
+    detonation's crossing time), damping as given or H2_AIR_DAMPING_PERIODS / f, amplitude
+    as given or H2_AIR_AMPLITUDE, no local peak.
+
+    With ``comm`` collective (gas.explosion: rank 0 computes, every rank gets its numbers)."""
+    if load.signal != "h2-air":
+        return load
+    state = gas.explosion(load.h2_fraction, load.T0, load.p0, comm)
+    f = acoustic_frequency(state.c_b_m_s, load.room_length)
+    aicc = (1.0 - load.heat_loss) * (state.P_AICC_Pa - load.p0)
+    amplitude = H2_AIR_AMPLITUDE[load.regime] if load.amplitude is None else load.amplitude
+    if load.regime == "deflagration":
+        return replace(load, signal="deflagration", peak=aicc, frequency=f, amplitude=amplitude)
+    return replace(load, signal="detonation", peak=state.P_reflected_Pa - load.p0, plateau=aicc, frequency=f,
+                   amplitude=amplitude, local_peak=0.0,
+                   decay=load.room_length / state.D_CJ_m_s if load.decay is None else load.decay,
+                   damping=H2_AIR_DAMPING_PERIODS / f if load.damping is None else load.damping)
+
+
+def h2_air_numbers(load):
+    """The numbers behind an h2-air load's signal (SI, absolute pressures unless said
+    overpressure): the mixture and its initial state, the gas.Explosion, the acoustic
+    frequency (Hz), and the shape's overpressures (Pa): its peak, and for a detonation its
+    plateau, decay and damping times (s)."""
+    state, shaped = gas.explosion(load.h2_fraction, load.T0, load.p0), h2_air_shape(load)
+    numbers = {"h2_fraction": load.h2_fraction, "regime": load.regime, "T0_K": load.T0, "p0_Pa": load.p0,
+               "mechanism": gas.MECHANISM, "cantera": gas.ct.__version__, **asdict(state),
+               "frequency_Hz": shaped.frequency, "peak_overpressure_Pa": shaped.peak, "heat_loss": load.heat_loss}
+    if load.regime == "detonation":
+        numbers.update(plateau_overpressure_Pa=shaped.plateau, decay_s=shaped.decay, damping_s=shaped.damping)
+    return numbers
+
+
+def signal(load, comm=None):
+    """The p(t) (Pa, vectorised over t in s) of a config.Load; ``comm`` as in h2_air_shape."""
+    load = h2_air_shape(load, comm)
     kind = load.signal
     if kind == "triangular":
         return triangular(load.peak, load.rise, load.duration)
@@ -151,6 +211,7 @@ def shortest_feature(load):
     resolve: a rise or a decay, a table interval, an oscillation's half period (crest to
     trough, as a triangle's rise), the Friedlander initial fall t_d / (1 + alpha) (the time
     its initial slope takes to reach 0), a local peak's rise w / 2; inf if none is > 0."""
+    load = h2_air_shape(load)
     kind = load.signal
     if kind == "table":
         features = list(np.diff(load.t))
@@ -172,6 +233,7 @@ def signal_summary(load):
     on [0, end] at 1/200 of its shortest feature (at most 2e6 samples) plus its kinks and
     peaks known in advance (a table's points, the rise, a local peak's centre), so that a
     piecewise-linear p is integrated exactly and a corner peak is not cut."""
+    load = h2_air_shape(load)
     end = signal_end(load)
     count = int(min(2e6, np.ceil(200 * end / min(shortest_feature(load), end)))) + 1
     marks = load.t if load.signal == "table" else [x for x in (load.rise, load.local_time) if x is not None]
@@ -179,6 +241,18 @@ def signal_summary(load):
     p = signal(load)(t)
     i = int(np.argmax(p))
     return float(p[i]), float(t[i]), float(np.trapz(p, t)), end
+
+
+def summary_block(load):
+    """summary.json's "load" block of a pressure config.Load: its signal's peak (Pa), time of
+    the peak (s), impulse (Pa s) and end (s) (signal_summary), and for h2-air the numbers
+    behind it (``h2_air``: h2_air_numbers)."""
+    peak, peak_time, impulse, end = signal_summary(load)
+    block = {"signal": load.signal, "peak_Pa": peak, "peak_time_s": peak_time, "impulse_Pa_s": impulse,
+             "duration_s": end}
+    if load.signal == "h2-air":
+        block["h2_air"] = h2_air_numbers(load)
+    return block
 
 
 def unit_pressure_vector(space, domain, boundary, region=None):

@@ -88,7 +88,7 @@ class Problem:
         h, n_steps = _time_step(case, bulk_ops.dt_crit)
         if case.load.kind == "pressure":
             load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
-            pressure = loads.signal(case.load)
+            pressure = loads.signal(case.load, comm)
         else:
             load, pressure = compat.Function(space.V), np.zeros_like  # no pressure: p(t) = 0
         return cls(case, comm, domain, space, bulk_ops, bars, links, Jump(space, links), stars, held, load,

@@ -40,6 +40,8 @@ FILE = ["geometry.kind='file'", "geometry.file={geo}", "geometry.length=", "geom
 STEEL = ["materials.steel.E=2e11", "materials.steel.nu=0.3", "materials.steel.rho=7850.0"]
 BARS = ["rebar.faces=['bottom']", "rebar.cover=0.01", "rebar.diameter=0.005", "rebar.spacing=0.1"]
 SHORT = ["time.end=2e-6", "output.figures=false", "output.fields=0"]
+H2_AIR = ["load.signal='h2-air'", "load.peak=", "load.rise=", "load.h2_fraction=0.296", "load.regime='detonation'",
+          "load.room_length=3.0"]  # a detonation of stoichiometric H2-air in a 3 m room
 
 # name: (case, --set overrides, other arguments, the key the one line must name)
 BAD = {
@@ -89,6 +91,14 @@ BAD = {
     "bar keys without faces": ("sound-bar", ["rebar.cover=0.01"], [], "rebar.cover"),
     "bar layer without spacing": ("sound-bar", BARS + ["rebar.spacing="], [], "rebar.spacing"),
     "fragments after the end": ("sound-bar", ["output.fragments_at=[1e-5, 1.0]"], [], "output.fragments_at"),
+    "H2 fraction below 0.1": ("sound-bar", H2_AIR + ["load.h2_fraction=0.05"], [], "load.h2_fraction"),
+    "H2 fraction above 0.6": ("sound-bar", H2_AIR + ["load.h2_fraction=0.7"], [], "load.h2_fraction"),
+    "unknown explosion regime": ("sound-bar", H2_AIR + ["load.regime='boom'"], [], "load.regime"),
+    "h2-air without a room length": ("sound-bar", H2_AIR + ["load.room_length="], [], "load.room_length"),
+    "h2-air deflagration without rise": ("sound-bar", H2_AIR + ["load.regime='deflagration'"], [], "load.rise"),
+    "rise of an h2-air detonation": ("sound-bar", H2_AIR + ["load.rise=1e-6"], [], "load.rise"),
+    "heat loss of all the pressure": ("sound-bar", H2_AIR + ["load.heat_loss=1"], [], "load.heat_loss"),
+    "h2-air with a given peak": ("sound-bar", H2_AIR + ["load.peak=1e6"], [], "load.peak"),
 }
 
 

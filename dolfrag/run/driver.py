@@ -7,7 +7,7 @@ from time import perf_counter
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import __version__, guards
+from dolfrag import __version__, guards, loads
 from dolfrag.config import Case, CaseError, load_case
 from dolfrag.post.output import RunOutput
 from dolfrag.problem import Problem
@@ -58,6 +58,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
         case = checkpoint.case_of(out)
     elif not isinstance(case, Case):
         case = load_case(case)
+    loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
     guards.report(case, comm)
     wall_start = perf_counter()
     saved = checkpoint.load(out, comm) if resume else None
@@ -163,6 +164,7 @@ def _header(case, problem, integ, comm):
             "links": comm.allreduce(len(problem.links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
             "steps": problem.n_steps, "dt_s": integ.h, "dt_crit_s": problem.dt_crit,
             "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
+            **({"load": loads.summary_block(case.load)} if case.load.kind == "pressure" else {}),
             "status": "running"}
 
 
