@@ -95,11 +95,12 @@ def _h2_air_lines(numbers):
         "T_reflected_K": "",
         "P_Taylor_Pa": f"{numbers['P_Taylor_Pa'] * bar:.2f} bar absolute = {numbers['P_Taylor_Pa'] / P_CJ:.3f} P_CJ;"
                        f" usual estimate {ref['Taylor_per_P_CJ']} P_CJ",
-        "peak_overpressure_Pa": "the signal's level: see docs/loads.md",
+        "peak_overpressure_Pa": "(1 - heat_loss)(P_AICC - p0), the mean pressure's peak"
+                                if numbers["regime"] == "deflagration" else "P_reflected - p0, the spike",
         "plateau_overpressure_Pa": "(1 - heat_loss)(P_AICC - p0)",
         "decay_s": "", "damping_s": ""}
     head = (f"# h2-air, {numbers['h2_fraction']:g} H2 by volume, {numbers['regime']}, T0 = {numbers['T0_K']:g} K, "
-            f"p0 = {numbers['p0_Pa']:g} Pa (Cantera {numbers['cantera']}, {numbers['mechanism']})")
+            f"p0 = {numbers['p0_Pa']:g} Pa (Cantera {numbers['cantera']}, {numbers['mechanism']}: its H, O, N species)")
     return "\n".join([head] + [f"{name} = {numbers[name]:.6g}" + (f"  # {note}" if note else "")
                                 for name, note in notes.items() if name in numbers])
 

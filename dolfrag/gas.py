@@ -203,8 +203,8 @@ class Explosion:
 
 
 def compute(h2_fraction, T0, p0):
-    """The Explosion of H2–air with ``h2_fraction`` (-) of H2 at T0 (K), p0 (Pa): a few
-    seconds of Cantera equilibria."""
+    """The Explosion of H2–air with ``h2_fraction`` (-) of H2 at T0 (K), p0 (Pa): some
+    hundreds of Cantera equilibria, a fraction of a second."""
     P, T, c_b = aicc(unburnt(h2_fraction, T0, p0))
     gas = unburnt(h2_fraction, T0, p0)
     cj = chapman_jouguet(gas)

@@ -115,11 +115,11 @@ def test_burnt_gas_sound_speed_is_the_equilibrium_one_by_a_pressure_perturbation
 def test_cj_speed_and_pressure_are_the_minimum_speed_on_the_equilibrium_hugoniot(h2_fraction, stoichiometric):
     found = stoichiometric if h2_fraction == STOICHIOMETRIC else gas.compute(h2_fraction, T_PUBLISHED, ATM)
     D, p = minimum_wave_speed(h2_fraction)
-    # the sonic point is the minimum (Jouguet's rule); D is flat there, so its minimum is
-    # accurate to the Hugoniot's convergence: 1e-5; the pressure at it moves with the located
-    # volume (xatol 1e-8 of v1, D'' finite): 1e-3
-    assert found.D_CJ_m_s == pytest.approx(D, rel=1e-5)
-    assert found.P_CJ_Pa == pytest.approx(p, rel=1e-3)
+    # the sonic point is the minimum (Jouguet's rule); D is flat there, so its minimum is as
+    # accurate as the Hugoniot's pressure (1e-10; measured 1e-9 apart): 1e-7; the pressure at
+    # it moves with the located volume, which the flat minimum fixes to ~1e-5 (measured 4e-6): 1e-4
+    assert found.D_CJ_m_s == pytest.approx(D, rel=1e-7)
+    assert found.P_CJ_Pa == pytest.approx(p, rel=1e-4)
 
 
 def test_cj_detonation_of_stoichiometric_h2_air_is_the_published_one(stoichiometric):
