@@ -158,7 +158,7 @@ def test_debris_csv_of_the_reduced_slab_follows_from_fragments_csv(slab):
     assert block["hazardous"] == np.count_nonzero(thrown["hazardous"]) == 0  # mJ, far below 79 J
     assert block["hazard_distance_m"] == 0.0
     assert block["largest_range_m"] == pytest.approx(thrown["range_m"].max(), rel=1e-9)
-    for name in ("debris_map.png", "fragment_masses.png"):
+    for name in ("debris_map.png", "fragment_masses.png", "fragments.png"):
         assert (out / "figures" / name).stat().st_size > 10_000, name
 
 

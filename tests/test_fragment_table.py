@@ -11,6 +11,7 @@ from scipy.spatial.distance import pdist
 from conftest import ROOT, rectangle
 from dolfrag import bulk, mesh, space as spaces
 from dolfrag.interface import links as link_table
+from dolfrag.post.figures import round_length
 from dolfrag.post.fragment_table import HULL_ABOVE, columns, fragment_table, largest_dimension, rows
 from dolfrag.post.fragments import Fragments, fragments
 from test_fragments import LENGTH, ROUNDOFF, WIDTH, band_fields, cut, plane_break_times
@@ -111,3 +112,7 @@ def test_rows_follow_the_columns_with_units_per_metre_in_2d(bar):
     table_rows = rows(table)
     assert len(table_rows) == 2 and all(len(row) == len(header) for row in table_rows)
     assert [row[header.index("group")] for row in table_rows] == ["concrete", "concrete"]
+
+
+def test_the_scale_bar_of_fragments_png_is_a_round_length():
+    assert [round_length(x) for x in (0.05, 0.049, 0.3, 7.0, 1.0)] == pytest.approx([0.05, 0.02, 0.2, 5.0, 1.0])

@@ -24,13 +24,15 @@ def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=Non
     return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
 
 
-def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None):
+def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None,
+                    ruler=False):
     """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
     one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
     displacement is drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m:
     moves each owned cell as a whole (e.g. ``exploded``). cells (n_owned_cells,) bool: draw
     only those (e.g. half a slab, so that the cut shows the cracks inside). view (3,): in 3D,
     the direction from the body towards the camera, z up (default (1, 1, 1), isometric).
+    ruler: also the axes with their coordinates (m) and a scale bar of a round length.
     ``note`` is added to the caption. Collective; rank 0 draws."""
     d = space.gdim
     comm = space.mesh.comm
@@ -60,12 +62,38 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     plotter.add_mesh(grid, scalars=label, cmap="viridis",
                      scalar_bar_args={"title": label, "vertical": False})
     plotter.add_text(f"displacement x {scale:.3g}" + (f"; {note}" if note else ""), font_size=10)
+    view = np.array([0.0, 0.0, 1.0] if d == 2 else (1.0, 1.0, 1.0) if view is None else view)
+    if ruler:
+        _ruler(plotter, pv, grid.bounds, view)
     if d == 2:
         plotter.view_xy()
     else:
-        plotter.view_vector((1.0, 1.0, 1.0) if view is None else view, viewup=(0.0, 0.0, 1.0))
+        plotter.view_vector(view, viewup=(0.0, 0.0, 1.0))
     plotter.screenshot(str(path))
     plotter.close()
+
+
+def round_length(most):
+    """The largest 1, 2 or 5 x 10^k not above ``most`` (> 0)."""
+    power = 10.0 ** np.floor(np.log10(most))
+    return max(f * power for f in (1, 2, 5) if f * power <= most * (1 + 1e-12))
+
+
+def _ruler(plotter, pv, bounds, view):
+    """Axes with coordinates (m) around ``bounds`` (xmin, xmax, ymin, ymax, zmin, zmax) and
+    a black scale bar a quarter of the largest extent long (rounded) along x, beside the body
+    on the camera's side (``view``: from the body towards the camera)."""
+    lo, hi = np.array(bounds[::2]), np.array(bounds[1::2])
+    plotter.show_bounds(xtitle="x (m)", ytitle="y (m)", ztitle="z (m)", location="outer", font_size=9, fmt="%.3g")
+    size = (hi - lo).max()
+    length = round_length(0.25 * size)
+    near = np.where(view > 0, hi, lo)  # the corner nearest the camera
+    start = np.array([near[0] - length if view[0] > 0 else near[0], near[1] + np.sign(view[1] or -1) * 0.12 * size,
+                      near[2]])
+    plotter.add_mesh(pv.Line(start, start + [length, 0.0, 0.0]), color="black", line_width=5)
+    plotter.add_point_labels([start + [length / 2, 0.0, 0.0]],
+                             [f"{length * 1e3:g} mm" if length < 1 else f"{length:g} m"],
+                             font_size=14, point_size=1, shape=None, always_visible=True)
 
 
 def exploded(frags, fragment_of_cell, spread):

@@ -49,9 +49,21 @@ def finish(ctx, output, damage, wall_time, summary):
     return Final(frags, fragment_of_cell, pieces, table, damage, wall_time, summary)
 
 
+def fragments_view(table):
+    """fragments.png's camera direction in 3D (z up), isometric: from above, or from below
+    when the pieces no support holds lie below the body's mass centre (e.g. crumbs of a
+    slab's loaded underside); None in 2D."""
+    if table.centroid.shape[1] == 2:
+        return None
+    free = ~table.held
+    below = free.any() and table.mass[free] @ table.centroid[free, 2] / table.mass[free].sum() < \
+        table.mass @ table.centroid[:, 2] / table.mass.sum()
+    return (1.0, 1.0, -1.0 if below else 1.0)
+
+
 def common_figures(ctx, folder, final):
-    """velocity.png, velocity_x.png, damage.png, fragment_masses.png, and load.png for a
-    pressure load. Collective."""
+    """velocity.png, velocity_x.png, damage.png, fragments.png, fragment_masses.png, and
+    load.png for a pressure load. Collective."""
     space, integ, case = ctx.space, ctx.integ, ctx.case
     v = integ.v.x.array.reshape(-1, space.gdim)
     broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)")
@@ -60,6 +72,13 @@ def common_figures(ctx, folder, final):
                     note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
                          f"t = {integ.t * 1e6:.1f} us")
     broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)")
+    fragment_speed = np.zeros(len(space.x))
+    fragment_speed[space.cell_dofs[:space.n_owned_cells]] = final.table.speed[final.fragment_of_cell][:, None]
+    broken_mesh_png(space, integ.u, fragment_speed, folder / "fragments.png", "fragment speed (m/s)", scale=1.0,
+                    cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE), ruler=True,
+                    view=fragments_view(final.table),
+                    note=f"{case.name}, t = {integ.t * 1e6:.1f} us; each fragment coloured by its mean speed, "
+                         f"moved apart by {EXPLODE:g} x its centroid offset")
     fragment_masses_png(final.table.mass[~final.table.held], final.summary["fragments"]["size_distribution"],
                         folder / "fragment_masses.png", ctx.comm,
                         f"fragments no support holds ({case.name}, t = {integ.t * 1e6:.1f} us)")
