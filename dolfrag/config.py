@@ -437,6 +437,19 @@ class Run:
 
 
 @dataclass(frozen=True)
+class Debris:
+    """[debris]: the throw of the fragments of a 3D run (z up) after its end, as point masses
+    under gravity and air drag (post/debris.py, docs/fragments.md). Ignored in 2D (no debris)."""
+    enabled: bool = _f("bool", True)                                     # debris.csv, debris_map.png
+    C_D: float = _f("float", 1.0, bounds="> 0")                          # drag coefficient [-] of a tumbling chunk
+    air_density: float = _f("float", 1.225, bounds=">= 0", unit="kg/m^3")  # 0: no drag
+    ground_z: float | None = _f("float", None, unit="m")                 # default: the body's lowest point
+    hazard_energy: float = _f("float", 79.0, bounds="> 0", unit="J")     # a fragment landing with this is hazardous
+    hazard_area: float = _f("float", 55.7, bounds="> 0", unit="m^2")     # one hazardous fragment per this: the limit
+    ring_width: float = _f("float", 1.0, bounds="> 0", unit="m")         # annuli of the hazard density
+
+
+@dataclass(frozen=True)
 class Case:
     name: str
     description: str
@@ -451,6 +464,7 @@ class Case:
     time: Time
     output: Output
     run: Run
+    debris: Debris
     source: Path | None = None       # the case file this came from
 
     def to_dict(self) -> dict:
@@ -459,7 +473,8 @@ class Case:
 
 
 _SECTIONS = {"geometry": Geometry, "mesh": Mesh, "material": Material, "interface": Interface,
-             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output, "run": Run}
+             "load": Load, "supports": Supports, "rebar": Rebar, "time": Time, "output": Output, "run": Run,
+             "debris": Debris}
 _TOP_KEYS = ("name", "description", *_SECTIONS, "materials")
 _PATH_KEYS = {f"{s}.{f.name}" for s, cls in _SECTIONS.items() for f in fields(cls)
               if "spec" in f.metadata and f.metadata["spec"].kind == "path"}

@@ -5,6 +5,7 @@ cell, carrying ``gdim`` displacement components. Arrays of dof values are flat,
 component-fastest, ``u[gdim * dof + k]``, exactly as in ``Function.x.array``.
 All indices are process-local; ghost dofs follow owned ones.
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,6 +95,13 @@ def facet_measures(p):
     if p.shape[2] == 2:
         return np.linalg.norm(p[:, 1] - p[:, 0], axis=1)
     return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+
+def cell_measures(x):
+    """Area (2D) or volume (3D) of simplices with corner coordinates x (n, gdim + 1, gdim),
+    m^2 or m^3."""
+    d = x.shape[2]
+    return np.abs(np.linalg.det(x[:, 1:] - x[:, :1])) / math.factorial(d)
 
 
 def create(domain):

@@ -25,6 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import bulk, compat
+from dolfrag.space import cell_measures
 
 
 @dataclass(frozen=True)
@@ -52,12 +53,10 @@ def step_factor(options=ViscosityOptions()):
 def shape_gradients(x):
     """grad N_a (n, d + 1, d) (1/m) and measure (n,) (m^2 or m^3) of P1 simplices with
     vertex coordinates x (n, d + 1, d), m."""
-    d = x.shape[2]
     edges = x[:, 1:] - x[:, :1]  # (n, d, d): rows x_a - x_0
     inv = np.linalg.inv(edges)  # columns: grad N_a, a = 1..d
     grads = np.concatenate([-inv.sum(axis=2)[:, None, :], np.swapaxes(inv, 1, 2)], axis=1)
-    measure = np.abs(np.linalg.det(edges)) / (1 if d == 1 else 2 if d == 2 else 6)
-    return grads, measure
+    return grads, cell_measures(x)
 
 
 class BulkViscosity:

@@ -99,6 +99,14 @@ BAD = {
     "rise of an h2-air detonation": ("sound-bar", H2_AIR + ["load.rise=1e-6"], [], "load.rise"),
     "heat loss of all the pressure": ("sound-bar", H2_AIR + ["load.heat_loss=1"], [], "load.heat_loss"),
     "h2-air with a given peak": ("sound-bar", H2_AIR + ["load.peak=1e6"], [], "load.peak"),
+    "negative drag coefficient": ("slab-3d-scabbing", ["debris.C_D=-1"], [], "debris.C_D"),
+    "negative air density": ("slab-3d-scabbing", ["debris.air_density=-1.2"], [], "debris.air_density"),
+    "ground level not a number": ("slab-3d-scabbing", ["debris.ground_z='floor'"], [], "debris.ground_z"),
+    "no hazard energy": ("slab-3d-scabbing", ["debris.hazard_energy=0"], [], "debris.hazard_energy"),
+    "negative hazard area": ("slab-3d-scabbing", ["debris.hazard_area=-55.7"], [], "debris.hazard_area"),
+    "rings of no width": ("slab-3d-scabbing", ["debris.ring_width=0"], [], "debris.ring_width"),
+    "debris switch not a bool": ("slab-3d-scabbing", ["debris.enabled=1"], [], "debris.enabled"),
+    "unknown debris key": ("slab-3d-scabbing", ["debris.gravity=9.81"], [], "debris.gravity"),
 }
 
 

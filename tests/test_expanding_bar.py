@@ -109,3 +109,28 @@ def test_one_and_two_ranks_give_the_same_fragments(bar_runs):
     for name in ("D_damage_J", "D_contact_J", "E_kinetic_J", "W_external_J"):
         # the same links broken at the same steps: energies to the stars' 1e-10
         assert one["energies_J"][name] == pytest.approx(two["energies_J"][name], rel=1e-8), name
+
+
+@pytest.mark.mpi
+def test_one_and_two_ranks_write_the_same_fragments_csv(bar_runs):
+    (one, out_one), (_, out_two) = bar_runs["one"], bar_runs["two"]
+    a, b = (np.genfromtxt(out / "fragments.csv", delimiter=",", names=True, dtype=None, encoding=None)
+            for out in (out_one, out_two))
+    assert len(a) == len(b) == one["fragments"]["count"] > 1
+    case = one["case"]
+    body = case["material"]["rho"] * case["geometry"]["length"] * case["geometry"]["width"]  # kg/m
+    # the rows sum to the bar's mass to their 10 printed digits
+    assert a["mass_kg_per_m"].sum() == pytest.approx(body, rel=1e-9)
+    for name in ("id", "group", "held", "came_free_s"):  # the same pieces, freed at the same steps
+        assert np.array_equal(a[name], b[name]), name
+    # sums in another order (10 printed digits); velocities to the stars' 1e-10 (the test above)
+    for name in ("mass_kg_per_m", "volume_m2", "x_m", "y_m", "largest_dimension_m"):
+        assert np.allclose(a[name], b[name], rtol=1e-9, atol=1e-12), name
+    speed = a["speed_m_s"].max()
+    for name in ("vx_m_s", "vy_m_s", "speed_m_s"):
+        assert np.allclose(a[name], b[name], rtol=1e-8, atol=1e-8 * speed), name
+    assert np.allclose(a["kinetic_energy_J_per_m"], b["kinetic_energy_J_per_m"], rtol=1e-7)
+    fits, other = one["fragments"]["size_distribution"], bar_runs["two"][0]["fragments"]["size_distribution"]
+    assert fits["fragments"] == other["fragments"] and fits["better"] == other["better"]
+    for model in ("grady", "mott"):
+        assert fits[model]["mu"] == pytest.approx(other[model]["mu"], rel=1e-9), model

@@ -34,20 +34,20 @@ def slab_runs(tmp_path_factory):
             mpirun(["-m", "dolfrag.cli", "run", "slab-3d-scabbing", "--quiet", *sets, "--out", out / str(n)], n=n)
         runs[n] = (json.loads((out / str(n) / "summary.json").read_text()),
                    np.genfromtxt(out / str(n) / "history.csv", delimiter=",", names=True),
-                   np.genfromtxt(out / str(n) / "links.csv", delimiter=",", names=True))
+                   np.genfromtxt(out / str(n) / "links.csv", delimiter=",", names=True), out / str(n))
     return runs
 
 
 @pytest.mark.mpi
 def test_reduced_slab_gives_the_same_broken_links_fragments_and_energies_on_1_2_and_3_ranks_and_any_partition(slab_runs):
-    summary, history, links = slab_runs[1]
+    summary, history, links, _ = slab_runs[1]
     assert summary["broken_links"] > 500 and summary["fragments"]["count"] > 5
     assert history["newton_unconverged"].max() == 0
     order = np.lexsort((links["weight"], links["nz"], links["ny"], links["nx"], links["z"], links["y"], links["x"]))
     work = history["W_external_J"].max()
     speed = np.abs(summary["fragments"]["velocity"]).max()
     for n in RANKS[1:]:
-        other, other_history, other_links = slab_runs[n]
+        other, other_history, other_links, _ = slab_runs[n]
         assert other["ranks"] == (2 if n == "random" else n)
         assert other["dt_s"] == pytest.approx(summary["dt_s"], rel=1e-12), n  # the bound's sums in another order
         assert other["broken_links"] == summary["broken_links"]
@@ -71,6 +71,39 @@ def test_reduced_slab_gives_the_same_broken_links_fragments_and_energies_on_1_2_
         zones, other_zones = summary["wall"]["damage_by_zone"], other["wall"]["damage_by_zone"]
         for zone in ("supports", "midspan"):
             assert other_zones[zone]["damaged_area_m2"] == pytest.approx(zones[zone]["damaged_area_m2"], rel=1e-8)
+
+
+def _table(folder, name):
+    return np.genfromtxt(folder / name, delimiter=",", names=True, dtype=None, encoding=None)
+
+
+@pytest.mark.mpi
+def test_reduced_slab_writes_the_same_fragments_csv_and_debris_on_1_2_and_3_ranks_and_any_partition(slab_runs):
+    summary, *_, folder = slab_runs[1]
+    frags, thrown = _table(folder, "fragments.csv"), _table(folder, "debris.csv")
+    speed = frags["speed_m_s"].max()
+    assert len(thrown) == summary["debris"]["thrown"] > 5
+    for n in RANKS[1:]:
+        other, *_, other_folder = slab_runs[n]
+        other_frags, other_thrown = _table(other_folder, "fragments.csv"), _table(other_folder, "debris.csv")
+        for name in ("id", "group", "held", "came_free_s"):  # the same pieces, freed at the same steps
+            assert np.array_equal(frags[name], other_frags[name]), (n, name)
+        # sums in another order, printed to 10 digits (output.write_csv)
+        for name in ("mass_kg", "volume_m3", "x_m", "y_m", "z_m", "largest_dimension_m"):
+            assert np.allclose(frags[name], other_frags[name], rtol=1e-9, atol=1e-12), (n, name)
+        for name in ("vx_m_s", "vy_m_s", "vz_m_s", "speed_m_s"):  # as the summary's velocities
+            assert np.allclose(frags[name], other_frags[name], rtol=0, atol=1e-8 * speed), (n, name)
+        assert np.array_equal(thrown["id"], other_thrown["id"]) and np.array_equal(thrown["hazardous"],
+                                                                                   other_thrown["hazardous"])
+        # launched 1e-8 of the fastest speed apart: landing that times the longest flight apart;
+        # times and impact speeds within 1e-8 of theirs (10 printed digits: 1e-9)
+        reach = 1e-8 * speed * thrown["flight_time_s"].max()
+        for name in ("landing_x_m", "landing_y_m", "range_m"):
+            assert np.allclose(thrown[name], other_thrown[name], rtol=1e-9, atol=reach), (n, name)
+        for name in ("flight_time_s", "impact_speed_m_s", "impact_energy_J"):
+            assert np.allclose(thrown[name], other_thrown[name], rtol=1e-7), (n, name)
+        for key in ("thrown", "held", "hazardous", "hazard_distance_m"):
+            assert other["debris"][key] == summary["debris"][key], (n, key)
 
 
 def test_slow_ramp_bends_the_slab_as_its_static_solution_and_the_thin_plate_estimate_is_reported(tmp_path):

@@ -4,6 +4,9 @@ import sys
 
 import numpy as np
 from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from dolfrag.post.fragment_sizes import grady_count, mott_count
 
 
 def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=None):
@@ -21,13 +24,15 @@ def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=Non
     return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
 
 
-def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None):
+def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None,
+                    ruler=False):
     """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
     one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
     displacement is drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m:
     moves each owned cell as a whole (e.g. ``exploded``). cells (n_owned_cells,) bool: draw
     only those (e.g. half a slab, so that the cut shows the cracks inside). view (3,): in 3D,
     the direction from the body towards the camera, z up (default (1, 1, 1), isometric).
+    ruler: also the axes with their coordinates (m) and a scale bar of a round length.
     ``note`` is added to the caption. Collective; rank 0 draws."""
     d = space.gdim
     comm = space.mesh.comm
@@ -57,12 +62,38 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     plotter.add_mesh(grid, scalars=label, cmap="viridis",
                      scalar_bar_args={"title": label, "vertical": False})
     plotter.add_text(f"displacement x {scale:.3g}" + (f"; {note}" if note else ""), font_size=10)
+    view = np.array([0.0, 0.0, 1.0] if d == 2 else (1.0, 1.0, 1.0) if view is None else view)
+    if ruler:
+        _ruler(plotter, pv, grid.bounds, view)
     if d == 2:
         plotter.view_xy()
     else:
-        plotter.view_vector((1.0, 1.0, 1.0) if view is None else view, viewup=(0.0, 0.0, 1.0))
+        plotter.view_vector(view, viewup=(0.0, 0.0, 1.0))
     plotter.screenshot(str(path))
     plotter.close()
+
+
+def round_length(most):
+    """The largest 1, 2 or 5 x 10^k not above ``most`` (> 0)."""
+    power = 10.0 ** np.floor(np.log10(most))
+    return max(f * power for f in (1, 2, 5) if f * power <= most * (1 + 1e-12))
+
+
+def _ruler(plotter, pv, bounds, view):
+    """Axes with coordinates (m) around ``bounds`` (xmin, xmax, ymin, ymax, zmin, zmax) and
+    a black scale bar a quarter of the largest extent long (rounded) along x, beside the body
+    on the camera's side (``view``: from the body towards the camera)."""
+    lo, hi = np.array(bounds[::2]), np.array(bounds[1::2])
+    plotter.show_bounds(xtitle="x (m)", ytitle="y (m)", ztitle="z (m)", location="outer", font_size=9, fmt="%.3g")
+    size = (hi - lo).max()
+    length = round_length(0.25 * size)
+    near = np.where(view > 0, hi, lo)  # the corner nearest the camera
+    start = np.array([near[0] - length if view[0] > 0 else near[0], near[1] + np.sign(view[1] or -1) * 0.12 * size,
+                      near[2]])
+    plotter.add_mesh(pv.Line(start, start + [length, 0.0, 0.0]), color="black", line_width=5)
+    plotter.add_point_labels([start + [length / 2, 0.0, 0.0]],
+                             [f"{length * 1e3:g} mm" if length < 1 else f"{length:g} m"],
+                             font_size=14, point_size=1, shape=None, always_visible=True)
 
 
 def exploded(frags, fragment_of_cell, spread):
@@ -167,5 +198,96 @@ def wave_png(t, y, v, thickness, path, comm, title="", depths=100):
     ax.set_xlabel(f"time t ({unit})")
     ax.set_ylabel("depth across the thickness (mm)")
     ax.set_title(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def fragment_masses_png(masses, fits, path, comm, title=""):
+    """The cumulative number N(>m) of fragments heavier than m against m, log-log, with the
+    fitted Grady and Mott distributions (``fits``: post.fragment_sizes.block of ``masses``,
+    in its unit) and their mass scales mu. Collective; rank 0 draws."""
+    plt = _pyplot(comm, path)
+    if plt is None:
+        return
+    unit = fits["unit"]
+    m = np.sort(np.asarray(masses))[::-1]
+    fig, ax = plt.subplots(figsize=(7, 4.5), layout="constrained")
+    ax.loglog(m, np.arange(1, len(m) + 1), "o", ms=4, label=f"dolfrag ({len(m)} fragments)")
+    if fits["grady"] is not None:
+        grid = np.geomspace(m[-1], m[0], 200)
+        for name, count, style in (("grady", grady_count, "--"), ("mott", mott_count, ":")):
+            mu, error = fits[name]["mu"], fits[name]["standard_error"]
+            formula = "exp(-m/mu)" if name == "grady" else "exp(-(m/mu)^1/2)"
+            ax.loglog(grid, count(grid, len(m), mu), style,
+                      label=f"{name.capitalize()} N0 {formula}: mu = {mu:.3g} ± {error:.2g} {unit}")
+        ax.set_ylim(bottom=0.5)
+    else:
+        ax.text(0.5, 0.5, "fewer than 2 fragments: no fit", transform=ax.transAxes, ha="center")
+    ax.set_xlabel(f"fragment mass m ({unit})")
+    ax.set_ylabel("fragments heavier than m, N(>m)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+DENSITY_LEVELS = (1, 2, 5, 10, 20, 50)  # debris_map_png: hazardous fragments per hazard_area
+
+
+def debris_map_png(debris, footprint, block, path, comm, title=""):
+    """Plan view (x, y in m) of where the debris lands: the structure's footprint (k, 2) m
+    outlined, each landing point sized by its mass and coloured by its impact energy (J),
+    the hazardous ones (``block["hazard_energy_J"]``) ringed, contours of the areal density
+    of hazardous fragments (their count within a circle of area ``block["hazard_area_m2"]``
+    around each point: 1 is the limit) and the hazard distance around the centre.
+    debris: post.debris.Throw; block: its post.debris.block. Collective; rank 0 draws."""
+    plt = _pyplot(comm, path)
+    if plt is None:
+        return
+    from matplotlib.colors import LogNorm  # matplotlib is optional: imported where it is there
+
+    centre, hazard_area = np.asarray(block["centre_m"]), block["hazard_area_m2"]
+    hazardous = debris.impact_energy >= block["hazard_energy_J"]
+    reach = max(np.abs(footprint - centre).max(), block["largest_range_m"], block["hazard_distance_m"])
+    extent = 1.15 * reach
+    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    outline = np.vstack([footprint, footprint[:1]])
+    ax.fill(outline[:, 0], outline[:, 1], color="0.85", ec="k", lw=1.2, label="structure (footprint)")
+    if hazardous.any():
+        x, y = np.meshgrid(*(np.linspace(c - extent, c + extent, 201) for c in centre))
+        radius = np.sqrt(hazard_area / np.pi)
+        count = cKDTree(debris.landing[hazardous, :2]).query_ball_point(np.column_stack([x.ravel(), y.ravel()]),
+                                                                        radius, return_length=True)
+        # the counts are integers: a line half-way between n - 1 and n bounds the area of >= n
+        levels = np.array(DENSITY_LEVELS) - 0.5
+        ax.contourf(x, y, count.reshape(x.shape), levels=[levels[0], np.inf], colors="red", alpha=0.08)
+        lines = ax.contour(x, y, count.reshape(x.shape), levels=levels, colors="red",
+                           linewidths=[1.5] + [0.6] * (len(levels) - 1))
+        ax.clabel(lines, fmt={level: f">= {level + 0.5:g}" for level in levels}, fontsize=7)
+    energy = debris.impact_energy
+    if len(energy):
+        low, high = energy[energy > 0].min(initial=np.inf), energy.max()
+        wide = np.isfinite(low) and high > 10 * low  # energies over decades: a log scale, zeros at its floor
+        points = ax.scatter(debris.landing[:, 0], debris.landing[:, 1], s=10 + 200 * debris.mass / debris.mass.max(),
+                            c=np.maximum(energy, low) if wide else energy, norm=LogNorm(low, high) if wide else None,
+                            cmap="viridis", edgecolors=np.where(hazardous, "red", "none"), linewidths=1.0, zorder=3)
+        fig.colorbar(points, ax=ax, label="impact energy 1/2 m v^2 (J)")
+    if block["hazard_distance_m"] > 0:
+        angle = np.linspace(0.0, 2 * np.pi, 361)
+        ax.plot(centre[0] + block["hazard_distance_m"] * np.cos(angle),
+                centre[1] + block["hazard_distance_m"] * np.sin(angle), "r--", lw=1.0, label="hazard distance")
+    ax.plot(*centre, "k+", ms=10, label="centre")
+    ax.set_xlim(centre[0] - extent, centre[0] + extent)
+    ax.set_ylim(centre[1] - extent, centre[1] + extent)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{title}\n{block['thrown']} thrown, {block['hazardous']} hazardous (>= "
+                 f"{block['hazard_energy_J']:g} J, ringed red); hazard distance {block['hazard_distance_m']:.3g} m\n"
+                 f"contours: hazardous fragments per {hazard_area:g} m^2 (1: the limit); marker area ~ mass",
+                 fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper right")
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -58,6 +58,15 @@ class Fragments:
     def __len__(self):
         return len(self.mass)
 
+    def came_free(self):
+        """(k,) s: when each fragment came free, the latest ``separated_at`` of the pairs it
+        is in (the last facet joining it to another piece was cut then); NaN for a piece
+        that touches no other (never joined) or whose break times are unknown."""
+        time = np.full(len(self), np.nan)
+        for side in (0, 1):
+            np.fmax.at(time, self.neighbours[:, side], self.separated_at)
+        return time
+
     def to_dict(self):
         """JSON-ready dict of plain lists (for summary.json), plus ``count``; NaN times
         become null."""

@@ -27,6 +27,15 @@ def dof_damage(space, links, link_damage, out):
     compat.scatter_forward(out)
 
 
+def write_csv(path, columns, rows):
+    """A CSV table at ``path``: the header ``columns``, then ``rows`` (lists of numbers and
+    strings); floats with 10 significant digits, NaN as ``nan``. Call on one rank."""
+    with open(path, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(columns)
+        out.writerows([f"{x:.10g}" if isinstance(x, (float, np.floating)) else x for x in row] for row in rows)
+
+
 class RunOutput:
     """Files of one run in ``out``; rank 0 writes CSV and JSON, VTK is collective."""
 
@@ -69,6 +78,11 @@ class RunOutput:
         table = np.concatenate(everyone)
         np.savetxt(self.out / "links.csv", table, delimiter=",", header=",".join(columns), comments="", fmt="%.9g")
         return table
+
+    def table(self, name, columns, rows):
+        """``name`` (e.g. fragments.csv) in the run folder: write_csv on rank 0 only."""
+        if self.comm.rank == 0:
+            write_csv(self.out / name, columns, rows)
 
     def failure(self, write):
         """Call write(vtk) with failure.pvd open: the state where a run failed. Collective."""

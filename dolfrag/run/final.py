@@ -1,11 +1,13 @@
-"""What every completed run reports at its end: the fragments, links.csv, and the common
-figures (velocity, exploded velocity_x, damage, load)."""
+"""What every completed run reports at its end: the fragments (summary.json, fragments.csv,
+their mass distribution), links.csv, and the common figures (velocity, exploded velocity_x,
+damage, load, fragment masses)."""
 from typing import NamedTuple
 
 import numpy as np
 
 from dolfrag import loads
-from dolfrag.post.figures import broken_mesh_png, exploded, signal_png
+from dolfrag.post import fragment_sizes, fragment_table
+from dolfrag.post.figures import broken_mesh_png, exploded, fragment_masses_png, signal_png
 from dolfrag.post.output import dof_damage
 
 # velocity_x.png: each fragment moved off the body's centre by this share of its centroid
@@ -16,10 +18,12 @@ EXPLODE = 0.1
 
 class Final(NamedTuple):
     """fragments: post.fragments.Fragments at the end (displaced); fragment_of_cell: each
-    owned cell's fragment; links: links.csv's rows on rank 0 (None elsewhere); damage: the
-    DG damage Function; wall_time: s since the run started; summary: the summary dict."""
+    owned cell's fragment; table: their post.fragment_table.FragmentTable (fragments.csv);
+    links: links.csv's rows on rank 0 (None elsewhere); damage: the DG damage Function;
+    wall_time: s since the run started; summary: the summary dict."""
     fragments: object
     fragment_of_cell: object
+    table: object
     links: object
     damage: object
     wall_time: float
@@ -27,20 +31,39 @@ class Final(NamedTuple):
 
 
 def finish(ctx, output, damage, wall_time, summary):
-    """The Final of a completed run; writes links.csv and the summary's fragments. Collective."""
+    """The Final of a completed run; writes links.csv, fragments.csv and the summary's
+    fragments with the fit of their masses (of the pieces no support holds). Collective."""
     space, links, model = ctx.space, ctx.links, ctx.integ.model
     frags, fragment_of_cell = ctx.fragments(of_cells=True)
+    pieces = fragment_table.fragment_table(space, ctx.problem.domain, ctx.case.supports, ctx.integ.m, frags,
+                                           fragment_of_cell)
+    output.table("fragments.csv", fragment_table.columns(space.gdim), fragment_table.rows(pieces))
     axes = "xyz"[:space.gdim]
     table = output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
                          np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
                                           model.damage(), model.broken(), ctx.break_time]))
-    summary["fragments"] = frags.to_dict()
+    free = pieces.mass[~pieces.held]
+    summary["fragments"] = {**frags.to_dict(),
+                            "size_distribution": fragment_sizes.block(free, "kg/m" if space.gdim == 2 else "kg")}
     dof_damage(space, links, model.damage(), damage)
-    return Final(frags, fragment_of_cell, table, damage, wall_time, summary)
+    return Final(frags, fragment_of_cell, pieces, table, damage, wall_time, summary)
+
+
+def fragments_view(table):
+    """fragments.png's camera direction in 3D (z up), isometric: from above, or from below
+    when the pieces no support holds lie below the body's mass centre (e.g. crumbs of a
+    slab's loaded underside); None in 2D."""
+    if table.centroid.shape[1] == 2:
+        return None
+    free = ~table.held
+    below = free.any() and table.mass[free] @ table.centroid[free, 2] / table.mass[free].sum() < \
+        table.mass @ table.centroid[:, 2] / table.mass.sum()
+    return (1.0, 1.0, -1.0 if below else 1.0)
 
 
 def common_figures(ctx, folder, final):
-    """velocity.png, velocity_x.png, damage.png, and load.png for a pressure load. Collective."""
+    """velocity.png, velocity_x.png, damage.png, fragments.png, fragment_masses.png, and
+    load.png for a pressure load. Collective."""
     space, integ, case = ctx.space, ctx.integ, ctx.case
     v = integ.v.x.array.reshape(-1, space.gdim)
     broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)")
@@ -49,6 +72,16 @@ def common_figures(ctx, folder, final):
                     note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
                          f"t = {integ.t * 1e6:.1f} us")
     broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)")
+    fragment_speed = np.zeros(len(space.x))
+    fragment_speed[space.cell_dofs[:space.n_owned_cells]] = final.table.speed[final.fragment_of_cell][:, None]
+    broken_mesh_png(space, integ.u, fragment_speed, folder / "fragments.png", "fragment speed (m/s)", scale=1.0,
+                    cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE), ruler=True,
+                    view=fragments_view(final.table),
+                    note=f"{case.name}, t = {integ.t * 1e6:.1f} us; each fragment coloured by its mean speed, "
+                         f"moved apart by {EXPLODE:g} x its centroid offset")
+    fragment_masses_png(final.table.mass[~final.table.held], final.summary["fragments"]["size_distribution"],
+                        folder / "fragment_masses.png", ctx.comm,
+                        f"fragments no support holds ({case.name}, t = {integ.t * 1e6:.1f} us)")
     if case.load.kind == "pressure":
         signal_png(loads.signal(case.load), case.time.end, folder / "load.png", ctx.comm,
                    f"load on '{case.load.boundary}' ({case.name})")

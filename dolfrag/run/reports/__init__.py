@@ -2,7 +2,8 @@
 summary.json (``summarise``) and draws its figures. A new kind of case adds a module here
 and its class to REPORTS; the time loop does not change."""
 from dolfrag.run.reports.bar import BarReport
+from dolfrag.run.reports.debris import DebrisReport
 from dolfrag.run.reports.expanding import ExpandingBarReport
 from dolfrag.run.reports.wall import WallReport
 
-REPORTS = (WallReport, ExpandingBarReport, BarReport)  # summary.json's order of blocks
+REPORTS = (WallReport, ExpandingBarReport, BarReport, DebrisReport)  # summary.json's order of blocks
