@@ -58,9 +58,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from dolfrag import bunker
 from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
 
-GEOMETRY_KINDS = ("rectangle", "box", "file")
+GEOMETRY_KINDS = ("rectangle", "box", "bunker", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
 SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", "table")
 REGIMES = ("deflagration", "detonation")  # of an h2-air explosion
@@ -69,6 +70,7 @@ SCHEMES = ("imex", "theta")
 LAWS = tuple(_LAW_REGISTRY)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
+BUNKER_BOUNDARIES = bunker.BOUNDARIES
 
 _CASES_DIR = Path(__file__).parent / "cases"
 
@@ -85,9 +87,9 @@ _REQ = object()  # spec default meaning "required"
 _OPS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le}
 _NOUNS = {"float": "a number", "int": "an integer", "str": "a string",
           "bool": "true or false", "names": "a list of strings", "path": "a path to a file",
-          "numbers": "a list of numbers", "point": "a list of 2 or 3 numbers"}
+          "numbers": "a list of numbers", "point": "a list of 2 or 3 numbers", "sizes": "a list of {count} numbers"}
 _TYPES = {"float": (int, float), "int": (int, float), "str": str, "bool": bool, "names": list,
-          "path": str, "numbers": list, "point": list}
+          "path": str, "numbers": list, "point": list, "sizes": list}
 
 
 @dataclass(frozen=True)
@@ -100,11 +102,12 @@ class _Spec:
     when: tuple = ()          # (discriminator field, values...): the key exists only then
     optional_for: tuple = ()  # discriminator values for which the key may be absent (None)
     suffixes: tuple = ()      # allowed file suffixes for kind "path"
+    count: int = 0            # how many numbers kind "sizes" holds
 
     def describe(self) -> str:
         if self.choices:
             return "must be one of " + ", ".join(map(repr, self.choices))
-        noun = _NOUNS[self.kind]
+        noun = _NOUNS[self.kind].format(count=self.count)
         if self.suffixes:
             noun = f"a path to a {' or '.join(self.suffixes)} file"
         text = f"must be {noun}"
@@ -154,6 +157,12 @@ def _convert(key: str, value: Any, spec: _Spec, base: Path) -> Any:
                    and spec.admits(x) for x in value):
             raise bad
         value = tuple(sorted(float(x) for x in value))
+    if kind == "sizes":
+        if len(value) != spec.count or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and spec.admits(x)
+                for x in value):
+            raise bad
+        value = tuple(float(x) for x in value)
     if kind == "point":
         if len(value) not in (2, 3) or not all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value):
@@ -202,6 +211,7 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
 # ---------------------------------------------------------------- sections
 _PLANAR = ("kind", "rectangle", "box")   # `when` conditions shared by several fields
 _IMPORTED = ("kind", "file")
+_BUNKER = ("kind", "bunker")
 _PRESSURE = ("kind", "pressure")
 _SHAPED = ("signal", "triangular", "friedlander", "deflagration", "detonation")
 _TIMED = _SHAPED + ("h2-air",)
@@ -218,25 +228,34 @@ _FRICTIONAL = ("law", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 
 @dataclass(frozen=True)
 class Geometry:
-    """[geometry]: the domain, generated (rectangle, box) or imported (file)."""
-    kind: str = _f("str", choices=GEOMETRY_KINDS)                     # "rectangle" | "box" | "file"
+    """[geometry]: the domain, generated (rectangle, box, bunker) or imported (file).
+
+    bunker (dolfrag/bunker.py): a closed room, ``inner`` (x, y, z up) inside, walls and roof
+    ``wall`` thick on a rigid foundation, a ``door`` (width, height) in the wall at y = 0,
+    closed by a panel ``door_thickness`` thick (0: a hole); every length times ``scale``."""
+    kind: str = _f("str", choices=GEOMETRY_KINDS)                     # one of GEOMETRY_KINDS
     length: float | None = _f("float", bounds="> 0", unit="m", when=_PLANAR)   # x extent > 0
     width: float | None = _f("float", bounds="> 0", unit="m", when=_PLANAR)    # y extent > 0
     thickness: float | None = _f("float", bounds="> 0", unit="m", when=("kind", "box"))  # z > 0
     file: Path | None = _f("path", when=_IMPORTED, suffixes=(".geo", ".msh"))  # absolute Path
     dim: int | None = _f("int", 2, choices=(2, 3), when=_IMPORTED)      # 2 | 3, default 2
+    inner: tuple[float, ...] | None = _f("sizes", (3.0, 2.0, 2.0), bounds="> 0", unit="m", when=_BUNKER, count=3)
+    wall: float | None = _f("float", 0.20, bounds="> 0", unit="m", when=_BUNKER)
+    door: tuple[float, ...] | None = _f("sizes", (0.9, 2.0), bounds="> 0", unit="m", when=_BUNKER, count=2)
+    door_thickness: float | None = _f("float", 0.0, bounds=">= 0", unit="m", when=_BUNKER)
+    scale: float | None = _f("float", 1.0, bounds="> 0", when=_BUNKER)
     # rectangle meshed as a regular grid of squares cut in triangles (grid lines are facets)
     structured: bool | None = _f("bool", False, when=("kind", "rectangle"))
 
     @property
     def boundaries(self) -> tuple[str, ...] | None:
         """Boundary names known before meshing (None for imported meshes)."""
-        return {"rectangle": RECTANGLE_BOUNDARIES, "box": BOX_BOUNDARIES}.get(self.kind)
+        return {"rectangle": RECTANGLE_BOUNDARIES, "box": BOX_BOUNDARIES, "bunker": BUNKER_BOUNDARIES}.get(self.kind)
 
     @property
     def tdim(self) -> int:
         """Topological dimension of the cells: 2 or 3."""
-        return {"rectangle": 2, "box": 3}.get(self.kind, self.dim)
+        return {"rectangle": 2, "box": 3, "bunker": 3}.get(self.kind, self.dim)
 
 
 @dataclass(frozen=True)
@@ -396,7 +415,8 @@ class Rebar:
     cover: float | None = _f("float", None, bounds="> 0", unit="m")       # face to bar axis
     diameter: float | None = _f("float", None, bounds="> 0", unit="m")
     spacing: float | None = _f("float", None, bounds="> 0", unit="m")     # between bars of a layer
-    direction: str = _f("str", "x", choices=("x", "y", "z", "xy", "xz", "yz"))  # bar axes (3D)
+    # bar axes (3D); "both": the two axes along each face (a bunker's walls and roof)
+    direction: str = _f("str", "x", choices=("x", "y", "z", "xy", "xz", "yz", "both"))
     E: float = _f("float", 2.0e11, bounds="> 0", unit="Pa")
     f_y: float | None = _f("float", None, bounds="> 0", unit="Pa")        # none: elastic
     # rupture strain, total engineering strain (B500: A_gt >= 0.05); none: never ruptures
@@ -567,6 +587,8 @@ def _check(case: Case) -> None:
             if kind < other and both:
                 raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
                                 f"supports.{other} (a boundary may be in one list only)")
+    if case.geometry.kind == "bunker":
+        _check_bunker(case.geometry)
     _check_rebar(case.rebar, case.geometry)
     _check_groups(case)
     late = [t for t in case.output.fragments_at if t > case.time.end]
@@ -576,11 +598,14 @@ def _check(case: Case) -> None:
     bars = case.rebar
     if bars.faces:
         if case.geometry.kind == "file":
-            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle or box geometry")
+            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box or bunker "
+                            "geometry")
         for key in ("cover", "diameter", "spacing"):
             if getattr(bars, key) is None:
                 raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
-        thinnest = min(x for x in (case.geometry.length, case.geometry.width, case.geometry.thickness) if x)
+        geometry = case.geometry
+        thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else
+                    min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
         if not bars.cover < thinnest / 2:
             raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
                             "smallest extent), or the layers cross")
@@ -592,13 +617,35 @@ def _check(case: Case) -> None:
 BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)
 
 
+def _check_bunker(geometry: Geometry) -> None:
+    """The door fits its wall: narrower than the room, no higher than it, its panel thinner
+    than the wall."""
+    (L_x, _, H), (width, height) = geometry.inner, geometry.door
+    for key, value, limit, what in (("door", width, L_x, "< geometry.inner[0], the room's length"),
+                                    ("door", height, H, "<= geometry.inner[2], the room's height"),
+                                    ("door_thickness", geometry.door_thickness, geometry.wall, "< geometry.wall")):
+        if value > limit or (value == limit and what.startswith("< ")):
+            shown = list(geometry.door) if key == "door" else value
+            raise CaseError(f"geometry.{key} = {_show(shown)}: {value:g} m must be {what} = {limit:g} m")
+
+
+def _built_groups(geometry: Geometry) -> tuple[str, ...]:
+    """The material groups a generated geometry names (mesh.py, bunker.py)."""
+    if geometry.kind == "bunker":
+        return bunker.PIECES + (("door",) if geometry.door_thickness > 0 else ())
+    return (BUILT_GROUP,)
+
+
 def _check_groups(case: Case) -> None:
-    """[materials.NAME] of a generated geometry: NAME is its one group (an imported mesh's
-    groups are checked once it is read, bulk.material_fields)."""
+    """[materials.NAME] of a generated geometry: NAME is one of its groups (an imported
+    mesh's groups are checked once it is read, bulk.material_fields)."""
+    if case.geometry.kind == "file":
+        return
+    allowed = _built_groups(case.geometry)
     for name in case.materials:
-        if case.geometry.kind != "file" and name != BUILT_GROUP:
-            raise CaseError(f"materials.{name}: not a material group of the mesh; allowed: {BUILT_GROUP!r} "
-                            f"(the {case.geometry.kind}'s only group; more need geometry.kind = 'file')")
+        if name not in allowed:
+            raise CaseError(f"materials.{name}: not a material group of the {case.geometry.kind}; allowed: "
+                            f"{', '.join(map(repr, allowed))} (other groups need geometry.kind = 'file')")
 
 
 def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
@@ -612,6 +659,13 @@ def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
                                 "(a list of faces to lay bars along)")
         return
     dim = geometry.tdim
+    if geometry.kind == "bunker":
+        if set(bars.faces) - {"inner", "outer"}:
+            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: in a bunker must be among 'inner', 'outer' "
+                            "(layers near that face of every wall and the roof)")
+        if bars.direction != "both":
+            raise CaseError(f"rebar.direction = {bars.direction!r}: in a bunker must be 'both' (a layer along "
+                            "each in-plane axis of every wall and the roof)")
     if dim == 2 and bars.direction not in ("x", "y"):
         raise CaseError(f"rebar.direction = {bars.direction!r}: in 2D must be 'x' or 'y' (the bar axis)")
     for face in (f for f in bars.faces if f in BOX_BOUNDARIES):

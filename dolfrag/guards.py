@@ -12,7 +12,7 @@ is a lower bound.
 import math
 import sys
 
-from dolfrag import analytic, viscosity
+from dolfrag import analytic, bunker, viscosity
 from dolfrag.config import CaseError
 
 CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)
@@ -25,8 +25,9 @@ EXTENT_KEYS = ("geometry.length", "geometry.width", "geometry.thickness")
 
 
 def extents(geometry):
-    """(length, width[, thickness]) (m) of a rectangle or box; None for an imported mesh."""
-    if geometry.kind == "file":
+    """(length, width[, thickness]) (m) of a rectangle or box; None for an imported mesh
+    or a bunker (its walls: _bunker_warning)."""
+    if geometry.kind in ("file", "bunker"):
         return None
     return (geometry.length, geometry.width, geometry.thickness)[:geometry.tdim]
 
@@ -39,8 +40,10 @@ def cells_in(sides, h, structured=False):
 
 
 def cells_estimate(geometry, h):
-    """Cells gmsh makes for a rectangle or box at element size h (m); None for a file
-    (mesh.build estimates a .geo from its bounding box once gmsh has read it)."""
+    """Cells gmsh makes for a rectangle, box or bunker at element size h (m); None for a
+    file (mesh.build estimates a .geo from its bounding box once gmsh has read it)."""
+    if geometry.kind == "bunker":
+        return CELLS_PER_H3 * bunker.layout(geometry).volume() / h**3
     sides = extents(geometry)
     return None if sides is None else cells_in(sides, h, geometry.structured)
 
@@ -80,6 +83,8 @@ def check(case):
         raise CaseError(f"time.end = {case.time.end!r}: about {steps:.3g} time steps of {case.time.end / steps:.3g} s "
                         f"(the stable step at mesh.size and material.E), above run.max_steps = "
                         f"{case.run.max_steps:g}; shorten time.end or raise run.max_steps (--set run.max_steps=...)")
+    if case.geometry.kind == "bunker":
+        return _bunker_warning(case.geometry, h)
     if sides is None:
         return None
     loaded = AXES.get(case.load.boundary) if case.load.kind == "pressure" else None
@@ -89,6 +94,20 @@ def check(case):
                     f"{sides[axis] / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
                     "resolve a wave or a bending crack")
     return None
+
+
+def _bunker_warning(geometry, h):
+    """The one-line warning when fewer than THIN elements fit across a bunker's thinnest
+    concrete (its walls, or the door panel), else None; CaseError when not even one does."""
+    thinnest = bunker.layout(geometry).thinnest()
+    if h > thinnest:
+        raise CaseError(f"mesh.size = {h!r}: larger than the bunker's thinnest concrete (geometry.wall, or "
+                        f"geometry.door_thickness), {thinnest:g} m; must be <= {thinnest:g} m")
+    if thinnest / h >= THIN:
+        return None
+    return (f"dolfrag: warning: the bunker's thinnest concrete (geometry.wall, or geometry.door_thickness) is "
+            f"{thinnest:g} m, only {thinnest / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
+            "resolve a wave or a bending crack")
 
 
 def report(case, comm):

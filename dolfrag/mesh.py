@@ -1,4 +1,5 @@
-"""Meshes: gmsh builders (2D rectangle, 3D box), import of .geo/.msh, and distribution.
+"""Meshes: gmsh builders (2D rectangle, 3D box, the bunker of bunker.py), import of .geo/.msh,
+and distribution.
 
 Every builder names its boundaries (``left``/``right`` at x = 0 / x = length,
 ``bottom``/``top`` at y = 0 / y = width, ``front``/``back`` at z = 0 / z = thickness)
@@ -21,7 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-from dolfrag import compat, guards
+from dolfrag import bunker, compat, guards
 from dolfrag.config import CaseError
 
 BOX_FACES = ("left", "right", "bottom", "top", "front", "back")
@@ -182,6 +183,8 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.i
             gmsh.model.add("dolfrag")
             if geometry.kind == "file":
                 tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size, max_cells)
+            elif geometry.kind == "bunker":
+                tdim = bunker.build(gmsh, geometry, size)
             else:
                 tdim = _build_box(gmsh, geometry, size)
             header = (tdim, _physical_names(gmsh, tdim - 1), _physical_names(gmsh, tdim))

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import compat
+from dolfrag import bunker, compat
 
 SAMPLES = 8  # samples per mesh size along a bar: a run per crossed cell, even where it clips a corner
 
@@ -22,13 +22,17 @@ def layer_polylines(rebar, geometry, gdim):
     second direction of a face sits one diameter further in, so that the bars cross, and a
     layer has as many bars as fit ``spacing`` apart with at least half a spacing to each
     edge, centred on the face (at least one): the steel per metre away from the edges is
-    then A / spacing, as in 2D."""
+    then A / spacing, as in 2D. direction "both": the two axes along each face. A bunker's
+    layers: bunker.rebar_polylines."""
+    if geometry.kind == "bunker":
+        return bunker.rebar_polylines(rebar, geometry)
     extent = np.array([geometry.length, geometry.width, geometry.thickness][:gdim])
     area = np.pi * rebar.diameter**2 / 4
     lines, areas = [], []
     for face in rebar.faces:
         normal_axis, side = divmod(("left", "right", "bottom", "top", "front", "back").index(face), 2)
-        along_axes = [a for a in ("xyz".index(c) for c in rebar.direction) if a != normal_axis]
+        axes = range(gdim) if rebar.direction == "both" else ("xyz".index(c) for c in rebar.direction)
+        along_axes = [a for a in axes if a != normal_axis]
         for layer, along in enumerate(along_axes):
             depth = rebar.cover + layer * rebar.diameter
             level = extent[normal_axis] - depth if side else depth

@@ -107,6 +107,15 @@ BAD = {
     "rings of no width": ("slab-3d-scabbing", ["debris.ring_width=0"], [], "debris.ring_width"),
     "debris switch not a bool": ("slab-3d-scabbing", ["debris.enabled=1"], [], "debris.enabled"),
     "unknown debris key": ("slab-3d-scabbing", ["debris.gravity=9.81"], [], "debris.gravity"),
+    "door wider than the room": ("bunker-h2", ["geometry.door=[3.5, 2.0]"], [], "geometry.door"),
+    "door higher than the room": ("bunker-h2", ["geometry.door=[0.9, 2.5]"], [], "geometry.door"),
+    "door panel as thick as the wall": ("bunker-h2", ["geometry.door_thickness=0.2"], [], "geometry.door_thickness"),
+    "room given two sizes": ("bunker-h2", ["geometry.inner=[3.0, 2.0]"], [], "geometry.inner"),
+    "bunker wall on a box": ("slab-3d-scabbing", ["geometry.wall=0.2"], [], "geometry.wall"),
+    "bunker bars on the ground": ("bunker-h2", ["rebar.faces=['ground']"], [], "rebar.faces"),
+    "bunker bars along one axis": ("bunker-h2", ["rebar.direction='x'"], [], "rebar.direction"),
+    "bunker material group not built": ("bunker-h2", ["materials.door.E=1e10", "materials.door.nu=0.2",
+                                                      "materials.door.rho=2300.0"], [], "materials.door"),
 }
 
 
