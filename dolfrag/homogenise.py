@@ -95,11 +95,20 @@ def static_centre_deflection(case, stiffness_ratio=None, rtol=1e-10):
     """Centre deflection per unit pressure (m/Pa) of the case's slab mesh with its interface
     springs (or stiffness_ratio * E / h), its supports, and a uniform static pressure on
     its load boundary: the mean displacement along the thickness (z) of the dofs within one
-    mesh size of the centre line (x, y) = (L_x / 2, L_y / 2), as the runner's deflection.
-    Bulk and springs only (no bars, no contact: elastic springs in tension and compression).
-    Conjugate gradients with PETSc's algebraic multigrid to ``rtol``. Serial on every
-    calling rank (COMM_SELF; gmsh is deterministic: the same mesh a parallel run
-    distributes)."""
+    mesh size of the centre line (x, y) = (L_x / 2, L_y / 2), as the runner's deflection."""
+    space, u = static_displacement(case, stiffness_ratio, rtol)
+    g = case.geometry
+    near = np.all(np.abs(space.x[:, :2] - np.array([g.length, g.width]) / 2) < case.mesh.size, axis=1)
+    return float(u[space.gdim * np.flatnonzero(near) + 2].mean())
+
+
+def static_displacement(case, stiffness_ratio=None, rtol=1e-10):
+    """(space, u): the case's mesh, serial, and its displacement per unit pressure (m/Pa,
+    flat dof components) with its interface springs (or stiffness_ratio * E / h), its
+    supports, and a uniform static pressure on its load boundary. Bulk and springs only (no
+    bars, no contact: elastic springs in tension and compression). Conjugate gradients with
+    PETSc's algebraic multigrid to ``rtol``. Serial on every calling rank (COMM_SELF; gmsh is
+    deterministic: the same mesh a parallel run distributes)."""
     domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF)
     space = spaces.create(domain)
     K = _stiffness_with_springs(case, space, domain, stiffness_ratio)
@@ -119,6 +128,4 @@ def static_centre_deflection(case, stiffness_ratio=None, rtol=1e-10):
         raise RuntimeError(f"static solve did not converge: reason {ksp.getConvergedReason()}")
     u = np.zeros(K.shape[0])
     u[free] = x.array
-    g = case.geometry
-    near = np.all(np.abs(space.x[:, :2] - np.array([g.length, g.width]) / 2) < case.mesh.size, axis=1)
-    return float(u[space.gdim * np.flatnonzero(near) + 2].mean())
+    return space, u

@@ -2,8 +2,9 @@
 summary.json (``summarise``) and draws its figures. A new kind of case adds a module here
 and its class to REPORTS; the time loop does not change."""
 from dolfrag.run.reports.bar import BarReport
+from dolfrag.run.reports.bunker import BunkerReport
 from dolfrag.run.reports.debris import DebrisReport
 from dolfrag.run.reports.expanding import ExpandingBarReport
 from dolfrag.run.reports.wall import WallReport
 
-REPORTS = (WallReport, ExpandingBarReport, BarReport, DebrisReport)  # summary.json's order of blocks
+REPORTS = (WallReport, BunkerReport, ExpandingBarReport, BarReport, DebrisReport)  # summary.json's order of blocks
