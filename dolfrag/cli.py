@@ -32,6 +32,7 @@ from dolfrag import gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.run.driver import run
 from dolfrag.run.signals import EXIT_CODES
+from dolfrag.solver.semismooth import ConvergenceError
 
 
 def _parser():
@@ -137,6 +138,10 @@ def main(argv=None):
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)
         return 2
+    except ConvergenceError as err:  # raised on every rank at once (its check is collective)
+        if comm.rank == 0:
+            print(f"dolfrag: error: the run stopped: {err}; summary.json has what it reached", file=sys.stderr)
+        return 1
     except Exception:
         if comm.size == 1:
             raise

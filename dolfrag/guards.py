@@ -20,6 +20,7 @@ CELLS_PER_H2_GRID = 2.0    # triangles per h^2 of area (geometry.structured)
 CELLS_PER_H3 = 6.0         # tetrahedra per h^3 of volume
 STEP_PER_H = {2: 0.5, 3: 0.16}   # stable bulk step x c_p / h
 THIN = 3                   # fewer elements than this across: warned
+SLIVER = 0.2               # a stable step below this share of the estimate: a sliver sets it
 AXES = {"left": 0, "right": 0, "bottom": 1, "top": 1, "front": 2, "back": 2}
 EXTENT_KEYS = ("geometry.length", "geometry.width", "geometry.thickness")
 
@@ -48,6 +49,26 @@ def cells_estimate(geometry, h):
     return None if sides is None else cells_in(sides, h, geometry.structured)
 
 
+def stable_step_estimate(case):
+    """The bulk's stable step (s) gmsh's cells of mesh.size usually give (module docstring),
+    with the stiffest material."""
+    c_p = max(math.sqrt(analytic.p_wave_modulus(m.E, m.nu, case.material.hypothesis) / m.rho)
+              for m in (case.material, *case.materials.values()))
+    return STEP_PER_H[case.geometry.tdim] * case.mesh.size / c_p
+
+
+def sliver_warning(case, dt_crit):
+    """The one-line warning (or None) when the mesh's stable step dt_crit (s, the bulk's,
+    before time.cfl and the bulk viscosity) is below SLIVER x stable_step_estimate: a flat
+    cell (a sliver) then sets every step of the run."""
+    expected = stable_step_estimate(case)
+    if dt_crit >= SLIVER * expected:
+        return None
+    return (f"dolfrag: warning: the mesh's stable step, {dt_crit:.3g} s, is {expected / dt_crit:.0f} times below "
+            f"the {expected:.3g} s cells of mesh.size = {case.mesh.size:g} m usually give: a flat cell (a sliver) "
+            "sets it; another mesh.size, or gmsh's Mesh.Smoothing and Mesh.OptimizeThreshold in a .geo, may remove it")
+
+
 def steps_estimate(case):
     """Time steps of the run: time.end over the step, for imex time.cfl x the bulk's
     estimated stable step at mesh.size with the stiffest material, for theta time.dt or
@@ -56,10 +77,8 @@ def steps_estimate(case):
     if time.scheme == "theta":
         from dolfrag.solver.theta import accuracy_time_step
         return time.end / (time.dt or accuracy_time_step(case.load, time.end))
-    c_p = max(math.sqrt(analytic.p_wave_modulus(m.E, m.nu, case.material.hypothesis) / m.rho)
-              for m in (case.material, *case.materials.values()))
     factor = viscosity.step_factor() if viscosity.applies(case) else 1.0  # it lowers the stable step
-    return time.end / (time.cfl * factor * STEP_PER_H[case.geometry.tdim] * case.mesh.size / c_p)
+    return time.end / (time.cfl * factor * stable_step_estimate(case))
 
 
 def check(case):

@@ -6,11 +6,12 @@ beside its geometry): the integrators (solver/imex.py, solver/theta/) are built 
 and carry u, v, t and the interface model's state.
 """
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import bulk, compat, loads, mesh, rebar, rebar_layout, space as spaces, supports, viscosity
+from dolfrag import bulk, compat, guards, loads, mesh, rebar, rebar_layout, space as spaces, supports, viscosity
 from dolfrag.config import CaseError
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -77,6 +78,9 @@ class Problem:
         _check_boundaries(case, domain)
         space = spaces.create(domain)
         bulk_ops = bulk.assemble(space, domain, case)
+        sliver = case.time.scheme == "imex" and guards.sliver_warning(case, bulk_ops.dt_crit)
+        if sliver and comm.rank == 0:
+            print(sliver, file=sys.stderr)
         bars = _rebars(case, space, bulk_ops, comm)
         links = link_table.build(space)
         held = supports.constrained_components(space, domain, case.supports)

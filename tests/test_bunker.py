@@ -10,7 +10,7 @@ import ufl
 from mpi4py import MPI
 
 from conftest import ROOT, mpirun
-from dolfrag import bunker, homogenise, loads, mesh
+from dolfrag import bunker, guards, homogenise, loads, mesh
 from dolfrag.config import load_case
 from dolfrag.post import bunker as bunker_post
 
@@ -73,7 +73,8 @@ def test_bars_lie_in_their_pieces_near_the_named_faces_and_stop_at_the_door():
         directions.add(axis)
         assert np.count_nonzero(np.abs(line[1] - line[0]) > 0) == 1  # straight along one axis
         mid = line.mean(axis=0)
-        owners = [name for name, (a, b) in lay.pieces.items() if np.all(line >= a - 1e-12) and np.all(line <= b + 1e-12)]
+        owners = [name for name, (a, b) in lay.pieces.items()
+                  if np.all(line >= a - 1e-12) and np.all(line <= b + 1e-12)]
         assert owners, line
         thin = bunker._THIN_AXIS[owners[0]][0]
         a, b = lay.pieces[owners[0]]
@@ -140,6 +141,8 @@ def test_reduced_bunker_gives_the_same_breaks_fragments_and_debris_on_1_and_2_ra
     one, two = (json.loads((bunker_runs[n] / "summary.json").read_text()) for n in (1, 2))
     assert one["broken_links"] > 50 and one["fragments"]["count"] >= 2
     assert two["ranks"] == 2 and two["dt_s"] == pytest.approx(one["dt_s"], rel=1e-12)
+    # no sliver sets the step (the mesher's default left one: 1e-8 s at this size)
+    assert one["dt_s"] > guards.SLIVER * guards.stable_step_estimate(load_case("bunker-h2", REDUCED))
     assert two["broken_links"] == one["broken_links"]
     # coplanar facets meeting at a vertex give links alike in position, normal and weight:
     # their damage (least significant) orders them
@@ -174,3 +177,33 @@ def test_pieces_count_the_free_fragments_of_each_group():
     block = bunker_post.pieces(table)
     assert block["roof"] == {"free_fragments": 2, "free_mass_kg": 5.0, "largest_speed_m_s": 7.0}
     assert block["wall_north"] == {"free_fragments": 0, "free_mass_kg": 0.0, "largest_speed_m_s": 0.0}
+
+
+def test_sliver_warning_names_the_step_and_the_estimate():
+    case = load_case("bunker-h2")
+    expected = guards.stable_step_estimate(case)  # 0.16 h / c_p: 3.9 us at 0.1 m
+    assert expected == pytest.approx(0.16 * 0.1 / np.sqrt(35e9 * 0.8 / (1.2 * 0.6) / 2350.0), rel=1e-12)
+    assert guards.sliver_warning(case, 1.1 * guards.SLIVER * expected) is None
+    line = guards.sliver_warning(case, 1e-8)
+    assert line.startswith("dolfrag: warning:") and "1e-08 s" in line and "mesh.size = 0.1 m" in line
+
+
+def test_a_two_room_bunker_read_from_a_geo_file_runs_with_its_groups_and_outputs(tmp_path):
+    """geometry.kind = "file" in 3D: the loaded "inner" faces of both rooms, the clamped
+    "ground", one volume group; fragments.csv sums to the concrete's mass; debris thrown."""
+    import dolfrag
+    case = load_case("bunker-two-rooms", ["mesh.size=0.25", "load.rise=4e-5", "load.duration=8e-5",
+                                          "time.end=2e-5", "output.every=1", "output.fields=0",
+                                          "output.figures=false"])
+    summary = dolfrag.run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
+    assert summary["status"] == "completed" and summary["cells"] > 4000
+    assert summary["dt_s"] > guards.SLIVER * guards.stable_step_estimate(case)
+    history = np.genfromtxt(tmp_path / "history.csv", delimiter=",", names=True)
+    assert history["W_external_J"][-1] > 0  # the rooms' pressure worked on the walls
+    table = np.genfromtxt(tmp_path / "fragments.csv", delimiter=",", names=True, dtype=None, encoding=None)
+    # the .geo's concrete: the block less both rooms, the doorway and the door (m^3)
+    volume = 4.6 * 2.4 * 2.2 - 2 * 2.0**3 - 0.2 * 0.8 * 2.0 - 0.9 * 0.2 * 2.0
+    assert np.sum(table["volume_m3"]) == pytest.approx(volume, rel=1e-9)  # 10 digits in the csv
+    assert np.sum(table["mass_kg"]) == pytest.approx(2350.0 * volume, rel=1e-9)
+    assert set(np.atleast_1d(table["group"])) == {"concrete"}
+    assert "debris" in summary

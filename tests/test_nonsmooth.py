@@ -135,6 +135,21 @@ def test_a_step_newton_cannot_finish_fails_clearly_and_saves_the_state(tmp_path,
     assert "newton_residual" in (tmp_path / "history.csv").read_text().splitlines()[0]
 
 
+def test_the_command_reports_a_failed_star_solve_in_one_line_and_exits_1(tmp_path, monkeypatch, capsys):
+    import functools
+
+    from dolfrag import cli
+    from dolfrag.solver import imex
+    from dolfrag.solver.semismooth import StarNewton
+    monkeypatch.setattr(imex, "StarNewton", functools.partial(StarNewton, max_iterations=1))
+    status = cli.main(["run", str(RCCM_BAR), "--out", str(tmp_path / "out"), "--quiet",
+                       "--set", "output.fields=0", "--set", "output.figures=false"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1 and err[0].startswith("dolfrag: error: the run stopped: "), err
+    assert "did not converge" in err[0]
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"].startswith("failed at t = ")
+
+
 def test_internal_friction_keeps_the_pressed_loaded_end_of_be12_whole(tmp_path):
     # BE12's 58 MPa pulse puts 29 MPa of shear on 45-degree facets, above the RCCM shear
     # peak sigma_c = 28 MPa: with the reference paper's law (mu_i = 0) the loaded end cracks while
