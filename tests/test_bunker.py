@@ -180,7 +180,7 @@ def test_pieces_count_the_free_fragments_of_each_group():
 
 
 def test_sliver_warning_names_the_step_and_the_estimate():
-    case = load_case("bunker-h2")
+    case = load_case("bunker-h2", ["mesh.size=0.1"])
     expected = guards.stable_step_estimate(case)  # 0.16 h / c_p: 3.9 us at 0.1 m
     assert expected == pytest.approx(0.16 * 0.1 / np.sqrt(35e9 * 0.8 / (1.2 * 0.6) / 2350.0), rel=1e-12)
     assert guards.sliver_warning(case, 1.1 * guards.SLIVER * expected) is None
