@@ -10,7 +10,7 @@ import ufl
 from mpi4py import MPI
 
 from conftest import ROOT, mpirun
-from dolfrag import bunker, guards, homogenise, loads, mesh
+from dolfrag import bunker, compat, guards, homogenise, loads, mesh
 from dolfrag.config import load_case
 from dolfrag.post import bunker as bunker_post
 
