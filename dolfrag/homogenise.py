@@ -12,9 +12,10 @@ import scipy.sparse.linalg as spla
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from dolfrag import bulk, loads, mesh, space as spaces, supports
+from dolfrag import bulk, bunker, loads, mesh, space as spaces, supports
 from dolfrag.interface import links as link_table
 from dolfrag.interface.jumps import Jump
+from dolfrag.post.bunker import long_wall_centre
 
 
 def interface_stiffness(jump, k_N, k_T):
@@ -100,6 +101,15 @@ def static_centre_deflection(case, stiffness_ratio=None, rtol=1e-10):
     g = case.geometry
     near = np.all(np.abs(space.x[:, :2] - np.array([g.length, g.width]) / 2) < case.mesh.size, axis=1)
     return float(u[space.gdim * np.flatnonzero(near) + 2].mean())
+
+
+def static_long_wall_deflection(case, rtol=1e-10):
+    """(cells, m/Pa): a bunker mesh's cell count and its long wall's outward (+y) centre
+    deflection per unit inside pressure, as the bunker report measures it
+    (post.bunker.long_wall_centre), with the springs and supports of static_displacement."""
+    space, u = static_displacement(case, rtol=rtol)
+    centre = long_wall_centre(space.x, bunker.layout(case.geometry), case.mesh.size)
+    return space.n_owned_cells, float(u[space.gdim * centre + 1].mean())
 
 
 def static_displacement(case, stiffness_ratio=None, rtol=1e-10):

@@ -45,6 +45,7 @@ def test_meshed_volumes_and_faces_have_the_layouts_sizes(door_thickness):
     if d > 0:
         expected_volumes["door"] = w * h * d
     assert set(domain.materials) == set(expected_volumes)
+    # boxes meshed by flat facets: the integrals are exact up to summing ~1e4 cells (1e-12)
     for name, volume in expected_volumes.items():
         assert _integral(one * dx(domain.materials[name])) == pytest.approx(volume, rel=1e-12), name
     assert sum(expected_volumes.values()) == pytest.approx(lay.volume(), rel=1e-12)
@@ -89,11 +90,10 @@ def test_slow_ramp_bends_the_long_wall_as_its_static_solution_and_the_plate_band
     import dolfrag
     case = load_case(ROOT / "tests" / "cases" / "bunker-ramp.toml")
     summary = dolfrag.run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
-    space, u = homogenise.static_displacement(case)  # m/Pa: the same mesh, springs and supports
-    centre = bunker_post.long_wall_centre(space.x, bunker.layout(case.geometry), case.mesh.size)
-    w_static = u[space.gdim * centre + 1].mean()
+    _, w_static = homogenise.static_long_wall_deflection(case)  # m/Pa: the same mesh, springs and supports
     wall = summary["bunker"]["long_wall"]
     pressure = loads.signal(case.load)(np.array([wall["peak_time_s"]]))[0]
+    # the deflection still grows at the end of the ramp (t = n h, summed in floating point)
     assert wall["peak_time_s"] == pytest.approx(case.load.rise, rel=1e-9)
     # quasi-static: measured 1.4 % above (tests/cases/bunker-ramp.toml); 5 % is the check's
     # bound, the dynamic lag of a ramp a few periods long

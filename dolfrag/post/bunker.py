@@ -21,9 +21,8 @@ def panel(geometry):
     """(a, b, t) m: the long wall as a plate, spanning the room's length between the short
     walls' mid-planes and its height from the ground to the roof's mid-plane, wall thick."""
     lay = bunker.layout(geometry)
-    t = lay.wall
-    L_x, _, H = geometry.scale * np.asarray(geometry.inner)
-    return L_x + t, H + t / 2, t
+    (L_x, _, H), t = lay.room[1] - lay.room[0], lay.wall
+    return float(L_x + t), float(H + t / 2), t
 
 
 def plate_estimates(geometry, material):

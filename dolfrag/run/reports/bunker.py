@@ -6,7 +6,6 @@ import numpy as np
 from dolfrag import bunker, loads
 from dolfrag.post import bunker as post
 from dolfrag.post.figures import broken_mesh_png, deflection_png
-from dolfrag.run.final import EXPLODE
 from dolfrag.post.wall import peak
 
 
