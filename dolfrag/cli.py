@@ -32,6 +32,7 @@ from dolfrag import gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.run.driver import run
 from dolfrag.run.signals import EXIT_CODES
+from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 
 
@@ -55,6 +56,9 @@ def _parser():
     plot.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                       help="override a case parameter, e.g. --set load.peak=2e6 (repeatable)")
     plot.add_argument("--out", help="PNG file (default: results/<case name>/load.png)")
+    replay = sub.add_parser("replay", help="solve again the vertex stars a stopped run could not solve")
+    replay.add_argument("dump", help="a failed_stars_rank<r>.npz the stopped run wrote")
+    replay.add_argument("--max-iterations", type=int, help="Newton iterations per star (default: the run's)")
     return parser
 
 
@@ -120,6 +124,10 @@ def main(argv=None):
         if args.command == "run" and args.resume:
             summary = run(None, args.resume, quiet=args.quiet, comm=comm, resume=True)
             return _report(summary, comm, args.quiet)
+        if args.command == "replay":
+            if comm.rank == 0:
+                print(star_replay.report(args.dump, args.max_iterations))
+            return 0
         if args.command == "cases":
             if comm.rank == 0:
                 print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))

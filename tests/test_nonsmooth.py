@@ -133,6 +133,16 @@ def test_a_step_newton_cannot_finish_fails_clearly_and_saves_the_state(tmp_path,
     assert (tmp_path / "failure.pvd").stat().st_size > 0
     # history.csv keeps what was written before the failure, residual column included
     assert "newton_residual" in (tmp_path / "history.csv").read_text().splitlines()[0]
+    # the failed stars, solved again from their dump: the same iterates give the run's
+    # residual (to round-off: the same compiled arithmetic on the same inputs, the stored
+    # factors rebuilt from their pieces), and the default iterations solve them
+    from dolfrag.solver import star_kernel, star_replay
+    dump = tmp_path / "failed_stars_rank0.npz"
+    run_residual = np.load(dump)["residual"]
+    status, residual, _ = star_replay.replay(dump)
+    assert np.all(status == star_kernel.UNCONVERGED) and np.allclose(residual, run_residual, rtol=1e-12, atol=0)
+    status, residual, _ = star_replay.replay(dump, max_iterations=100)
+    assert np.all(status == star_kernel.CONVERGED) and np.all(residual <= star_kernel.RTOL)
 
 
 def test_the_command_reports_a_failed_star_solve_in_one_line_and_exits_1(tmp_path, monkeypatch, capsys):
@@ -148,6 +158,9 @@ def test_the_command_reports_a_failed_star_solve_in_one_line_and_exits_1(tmp_pat
     assert status == 1 and len(err) == 1 and err[0].startswith("dolfrag: error: the run stopped: "), err
     assert "did not converge" in err[0]
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"].startswith("failed at t = ")
+    # the stars it names are solved again by `dolfrag replay`
+    assert cli.main(["replay", str(tmp_path / "out" / "failed_stars_rank0.npz")]) == 0
+    assert "replay unconverged" in capsys.readouterr().out
 
 
 def test_internal_friction_keeps_the_pressed_loaded_end_of_be12_whole(tmp_path):

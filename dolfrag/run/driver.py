@@ -23,6 +23,7 @@ from dolfrag.run.loop import time_loop
 from dolfrag.run.reports import REPORTS
 from dolfrag.run.signals import Stop
 from dolfrag.solver.imex import Imex
+from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 from dolfrag.solver.theta import Theta
 from dolfrag.stretch import Stretch
@@ -98,6 +99,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
                 last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step)
             except ConvergenceError:
                 output.failure(lambda vtk: fields.write(integ.t, vtk))  # the state, for a look
+                _dump_failed_stars(integ, out, comm)
                 raise
         summary["timings_s"] = integ.timer.summary(comm)
         # star solves accepted at their best iterate within semismooth.GIVE_UP (imex)
@@ -115,6 +117,14 @@ def run(case, out, quiet=False, comm=None, resume=False):
         return summary
     _complete(ctx, output, fields, summary, [*rows[1:], *observers, *reports], reports)
     return summary
+
+
+def _dump_failed_stars(integ, out, comm):
+    """Each rank's unconverged vertex stars (imex), for solver/star_replay.py."""
+    failed = getattr(integ.interface, "failed", None)  # only the nonsmooth star solver has them
+    if failed is not None:
+        star_replay.dump(Path(out) / f"failed_stars_rank{comm.rank}.npz", failed, t=integ.t, step=integ.n,
+                         rank=comm.rank)
 
 
 def _observers(ctx, resume_step):

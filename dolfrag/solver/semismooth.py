@@ -39,7 +39,7 @@ module gathers a step's data for it and books what it returns (damage, contact w
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.solver import star_kernel
+from dolfrag.solver import star_kernel, star_replay
 from dolfrag.solver.energy import reaction_work
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
@@ -164,6 +164,9 @@ class StarNewton:
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
+        self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
+        self._entry_predicted = np.zeros(self.layout.n_stars, dtype=bool)
+        self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
 
     needs_jumps = True  # every step: the contact work of each step is booked from them
 
@@ -196,12 +199,13 @@ class StarNewton:
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
         per_link = self._link_data(state_n, self._mu, self._shift, self._cohesion_T)
-        rhs = h * f[lay.comps]
+        rhs, x_in = h * f[lay.comps], out[lay.comps]  # x_in: the prescribed increments (a copy)
         self._counters[:] = 0
-        star_kernel.solve_stars(*lay.geometry(), rhs, np.ascontiguousarray(out[lay.comps]), g_loc, dg_loc, *per_link,
+        star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                 float(h), float(self.rtol), int(self.max_iterations), bool(self.predict),
                                 float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
-                                self._gbar, self._g_mid, self.status, self.star_residual, self._counters)
+                                self._gbar, self._g_mid, self.status, self.star_residual, self._counters,
+                                self._entry_codes, self._entry_predicted)
         out[lay.comps] = self._x
         self.reaction[lay.comps] = self._reaction
         self.r[lay.links] = self._r
@@ -210,6 +214,8 @@ class StarNewton:
         self.stalled += int(self._counters[N_STALLED])
         self.first = int(self._counters[N_FIRST])
         self.residual = self.star_residual.max(initial=0.0)
+        if self.unconverged:
+            self.failed = self._failed_stars(rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c)
         # the state after the step, from the accepted jumps
         gbar, g_mid, before = self._gbar, self._g_mid, state_n[lay.links]
         trial = self.model.trial_state(gbar[:, 0], gbar[:, 1:], before, self._r[:, 0])
@@ -225,6 +231,21 @@ class StarNewton:
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
                                     *lay.cache())
+
+    def _failed_stars(self, rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c):
+        """The unconverged stars' kernel inputs, as star_replay.select lays them out."""
+        lay = self.layout
+        stars = np.flatnonzero(self.status == star_kernel.UNCONVERGED)
+        geometry = dict(zip(star_replay.GEOMETRY, lay.geometry()))
+        per_comp = {k: geometry[k] for k in ("mass", "fixed")} | dict(rhs=rhs, x_in=x_in, comps=lay.comps)
+        per_link = {k: geometry[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen")} | dict(
+            g_n=g_loc, dg=dg_loc, **dict(zip(("mu", "shift", "cohesion_T", "k_N", "k_T"), per_link)),
+            codes=self._entry_codes)
+        failed = star_replay.select(stars, lay.comp_off, lay.link_off, per_comp, per_link)
+        failed.update(cached=self._entry_predicted[stars], residual=self.star_residual[stars], star=stars,
+                      h=self.h, rtol=self.rtol, max_iterations=self.max_iterations, predict=self.predict,
+                      floor_m=floor_m, floor_c=floor_c)
+        return failed
 
     def _link_data(self, state, mu, shift, cohesion_T):
         """Per star link, from per-link arrays of every link: friction mu, cohesion shift,

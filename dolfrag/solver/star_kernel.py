@@ -20,7 +20,7 @@ traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the ste
 import numpy as np
 from numba import njit
 
-from dolfrag.solver.active_set import CONTACT, SLIP, SPRING, affine_constant, link_code
+from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, affine_constant, link_code
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -504,6 +504,28 @@ def solve_star(store, index, R, work):
 
 
 @njit(cache=True, error_model="numpy")
+def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, store, index):
+    """factor_star of the Jacobian of the affine piece ``code`` (L,) of one star (what
+    keep_pieces stores for a star that converged on it), from the codes alone: on an
+    affine piece the branches are the code's, a 2D slip direction is its sign and the
+    tangential projection vanishes (P = scale (1 - e^2) = 0). Arguments as _jacobian."""
+    branch, e = np.zeros((L, 5)), np.zeros((L, max(d - 1, 1)))
+    for l in range(L):
+        c = code[l]
+        branch[l, B_CONTACT] = 1.0 if c & CONTACT else 0.0
+        branch[l, B_STICK] = 1.0 if c & STICK else 0.0
+        branch[l, B_SLIP] = 1.0 if c & SLIP else 0.0
+        branch[l, B_PRESSED] = 1.0 if c & PRESSED else 0.0
+        if d == 2 and c & SLIP:
+            e[l, 0] = -1.0 if c & NEGATIVE else 1.0
+    N = q + L * d
+    J = np.empty((N, N))
+    _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J,
+              np.empty(3 * d * d))
+    factor_star(J, store, index)
+
+
+@njit(cache=True, error_model="numpy")
 def _cacheable(L, d, frozen, code):
     """Whether a star's Jacobian is that of an affine piece: no frozen link (a fixed-point
     iteration) and, in 3D, no slipping link (smooth, not affine)."""
@@ -519,7 +541,7 @@ def _cacheable(L, d, frozen, code):
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, cached,
-                x_out, r_out, reaction, gbar_out, g_mid, status, residual, counters):
+                x_out, r_out, reaction, gbar_out, g_mid, status, residual, counters, entry_codes, entry_predicted):
     """Solve every star of the rank for this step.
 
     Per star component (flat over the stars, comp_off): mass (kg), fixed, rhs = h f (N s),
@@ -533,7 +555,10 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, g_mid (the springs'
     jump and (g_n + g_{n+1}) / 2, m) per link; per star status (CONVERGED, STALLED,
     UNCONVERGED) and its final scaled residual; counters: the most iterations, the
-    unconverged and stalled stars, the stars solved at iteration 1.
+    unconverged and stalled stars, the stars solved at iteration 1. For an unconverged star
+    only, what replay() needs to start it as this call did: the pieces of its stored
+    factors (entry_codes, per link) and whether it started from their prediction
+    (entry_predicted).
     """
     n_stars = len(comp_off) - 1
     d = frame.shape[1]
@@ -547,7 +572,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     r = np.empty((L_max, d))
     Bx, gbar, slip = np.empty((L_max, d)), np.empty((L_max, d)), np.empty((L_max, d))
     branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
-    code = np.empty(L_max, dtype=np.int8)
+    code, code_in = np.empty(L_max, dtype=np.int8), np.empty(L_max, dtype=np.int8)
     R, delta, direction = np.empty(N_max), np.empty(N_max), np.empty(N_max)
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
@@ -582,6 +607,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         # failed to converge; cold, they complete)
         rs[:, :] = 0.0
         predicted = cached[s] and predict and not imposed  # imposed motion: not cached
+        code_in[:L] = scode
         if predicted:
             affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode, delta)
             solve_star(store, index, delta[:N], work)
@@ -621,6 +647,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 else:  # above GIVE_UP even at its best: the run stops (ConvergenceError)
                     status[s] = UNCONVERGED
                     counters[N_UNCONVERGED] += 1
+                    entry_codes[l0:l1] = code_in[:L]
+                    entry_predicted[s] = predicted
                 residual[s] = scaled
                 for i in range(q):
                     x_out[p0 + i] = xs[i]
@@ -742,5 +770,6 @@ def warm():
         solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
                     predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
                     reaction=np.zeros(q), gbar_out=np.zeros((L, d)), g_mid=np.zeros((L, d)),
-                    status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64))
+                    status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64),
+                    entry_codes=np.zeros(L, np.int8), entry_predicted=np.zeros(1, bool))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)

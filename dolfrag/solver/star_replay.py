@@ -1,0 +1,108 @@
+"""The vertex stars a step could not solve, saved and solved again on their own.
+
+When a star of the nonsmooth `imex` step ends above GIVE_UP (solver/star_kernel.py), the
+run stops with ConvergenceError, and each rank writes its failed stars' kernel inputs to
+``failed_stars_rank<r>.npz`` in the run's folder: a small flat layout of those stars alone
+(the same arrays solve_stars reads), the pieces their stored factors held and whether they
+started from that prediction. Solving them again needs no mesh, no case and no MPI:
+
+    dolfrag replay results/bunker-h2/failed_stars_rank0.npz [--max-iterations N]
+
+prints, per star, its size, its links by piece, the residual of the run and that of the
+replay (the same, to round-off, unless the kernel changed), so a change to the solver can be
+tried on the exact star that failed.
+"""
+import numpy as np
+
+from dolfrag.solver import star_kernel
+from dolfrag.solver.active_set import CONTACT, SLIP, STICK
+
+# the kernel's inputs a dump holds, in solve_stars' order (geometry, data, cache)
+GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed")
+DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
+SCALARS = ("h", "rtol", "max_iterations", "predict", "floor_m", "floor_c")
+
+
+def select(stars, comp_off, link_off, per_comp, per_link):
+    """The flat layout of ``stars`` alone: (comp_off, link_off) rebased, and the rows of each
+    array of per_comp (dict of arrays over the components) and per_link (over the star
+    links) that belong to them."""
+    q = comp_off[stars + 1] - comp_off[stars]
+    L = link_off[stars + 1] - link_off[stars]
+    comps = np.concatenate([np.arange(comp_off[s], comp_off[s + 1]) for s in stars])
+    links = np.concatenate([np.arange(link_off[s], link_off[s + 1]) for s in stars])
+    out = {"comp_off": np.concatenate([[0], np.cumsum(q)]), "link_off": np.concatenate([[0], np.cumsum(L)])}
+    out.update({k: np.ascontiguousarray(v[comps]) for k, v in per_comp.items()})
+    out.update({k: np.ascontiguousarray(v[links]) for k, v in per_link.items()})
+    return out
+
+
+def dump(path, arrays, **context):
+    """Write a failed-star layout (select's dict plus codes, cached and the SCALARS) and
+    what the run knew of it (t, step, rank, residual) to path (.npz)."""
+    np.savez(path, **arrays, **context)
+
+
+def replay(path, **change):
+    """Solve the stars of the dump at ``path`` again, from the start the run gave them;
+    ``change`` overrides scalars (e.g. max_iterations). Returns (status, residual,
+    iterations) per star, star_kernel's status codes."""
+    data = dict(np.load(path))
+    data.update(change)
+    comp_off, link_off, d = data["comp_off"], data["link_off"], data["frame"].shape[1]
+    q, L = np.diff(comp_off), np.diff(link_off)
+    N = q + L * d
+    fac_off = np.concatenate([[0], np.cumsum(N * N)])
+    piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)])
+    factors, pivots = np.zeros(fac_off[-1]), np.zeros(piv_off[-1], dtype=np.int64)
+    geometry = [data[k] for k in GEOMETRY]
+    for s in np.flatnonzero(data["cached"]):  # the stored factors its prediction used
+        p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
+        star_kernel.factor_piece(q[s], L[s], d, data["slot_A"][l], data["slot_B"][l], data["frame"][l],
+                                 data["weight"][l], data["rho"][l], data["frozen"][l], data["mass"][p],
+                                 data["fixed"][p], data["mu"][l], data["k_N"][l], data["k_T"][l], float(data["h"]),
+                                 data["codes"][l], factors[fac_off[s]:fac_off[s + 1]],
+                                 pivots[piv_off[s]:piv_off[s + 1]])
+    n = len(q)
+    status, residual, iterations = np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int64)
+    for s in range(n):  # one call per star: the kernel counts iterations per call
+        one = slice(s, s + 1)
+        counters = np.zeros(4, np.int64)
+        sub = select(np.array([s]), comp_off, link_off,
+                     {k: data[k] for k in ("mass", "fixed", "rhs", "x_in")},
+                     {k: data[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu",
+                                           "shift", "cohesion_T", "k_N", "k_T", "codes")})
+        star_kernel.solve_stars(
+            *[sub[k] for k in GEOMETRY], *[sub[k] for k in DATA], float(data["h"]), float(data["rtol"]),
+            int(data["max_iterations"]), bool(data["predict"]), float(data["floor_m"]), float(data["floor_c"]),
+            np.array([0, N[s] ** 2]), np.array([0, 2 * N[s] + 1]), factors[fac_off[s]:fac_off[s + 1]].copy(),
+            pivots[piv_off[s]:piv_off[s + 1]].copy(), sub["codes"].copy(), data["cached"][one].copy(),
+            np.zeros(q[s]), np.zeros((L[s], d)), np.zeros(q[s]), np.zeros((L[s], d)), np.zeros((L[s], d)),
+            status[one], residual[one], counters, np.zeros(L[s], np.int8), np.zeros(1, bool))
+        iterations[s] = counters[star_kernel.ITERATIONS]
+    return status, residual, iterations
+
+
+def describe(path):
+    """One line per star of the dump: its size, its links by piece, the run's residual."""
+    data = np.load(path)
+    comp_off, link_off = data["comp_off"], data["link_off"]
+    lines = [f"{path}: t = {float(data['t']):.6g} s, step {int(data['step'])}, rank {int(data['rank'])}"]
+    for s in range(len(comp_off) - 1):
+        codes = data["codes"][link_off[s]:link_off[s + 1]]
+        contact, stick, slip = ((codes & bit) > 0 for bit in (CONTACT, STICK, SLIP))
+        lines.append(f"star {s}: {comp_off[s + 1] - comp_off[s]} components, {len(codes)} links "
+                     f"({contact.sum()} in contact, {stick.sum()} sticking, {slip.sum()} slipping), "
+                     f"{'predicted' if data['cached'][s] else 'from zero'}, run's residual {data['residual'][s]:.3g}")
+    return "\n".join(lines)
+
+
+def report(path, max_iterations=None):
+    """describe(path) and, per star, how the replay ended (max_iterations: the run's if None)."""
+    change = {} if max_iterations is None else {"max_iterations": max_iterations}
+    names = {star_kernel.CONVERGED: "converged", star_kernel.STALLED: "stalled (accepted)",
+             star_kernel.UNCONVERGED: "unconverged"}
+    lines = [describe(path)]
+    for s, (status, residual, iterations) in enumerate(zip(*replay(path, **change))):
+        lines.append(f"star {s}: replay {names[int(status)]}, residual {residual:.3g} after {iterations} iterations")
+    return "\n".join(lines)
