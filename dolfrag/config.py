@@ -409,7 +409,8 @@ class Supports:
 @dataclass(frozen=True)
 class Rebar:
     """[rebar]: steel bars in tension only (rebar.py), as layers parallel to faces of a
-    rectangle or box. No faces: no bars. In 2D a layer is one bar standing for bars
+    rectangle, box or bunker, or behind face groups of a 3D mesh file (rebar_faces.py). No
+    faces: no bars. In 2D a layer is one bar standing for bars
     ``spacing`` apart across the depth (area pi d^2 / 4 / spacing per metre)."""
     faces: tuple[str, ...] = _f("names", ())      # a layer near each of these faces
     cover: float | None = _f("float", None, bounds="> 0", unit="m")       # face to bar axis
@@ -597,15 +598,15 @@ def _check(case: Case) -> None:
                         f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
     bars = case.rebar
     if bars.faces:
-        if case.geometry.kind == "file":
-            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box or bunker "
-                            "geometry")
+        if case.geometry.kind == "file" and case.geometry.tdim == 2:
+            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box, bunker or "
+                            "a 3D mesh file (geometry.dim = 3)")
         for key in ("cover", "diameter", "spacing"):
             if getattr(bars, key) is None:
                 raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
         geometry = case.geometry
-        thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else
-                    min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
+        thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else np.inf if geometry.kind == "file"
+                    else min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
         if not bars.cover < thinnest / 2:
             raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
                             "smallest extent), or the layers cross")
@@ -666,6 +667,9 @@ def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
         if bars.direction != "both":
             raise CaseError(f"rebar.direction = {bars.direction!r}: in a bunker must be 'both' (a layer along "
                             "each in-plane axis of every wall and the roof)")
+    if geometry.kind == "file" and dim == 3 and bars.direction != "both":
+        raise CaseError(f"rebar.direction = {bars.direction!r}: on a mesh file must be 'both' (a layer along "
+                        "each in-plane axis behind every flat part of each face group)")
     if dim == 2 and bars.direction not in ("x", "y"):
         raise CaseError(f"rebar.direction = {bars.direction!r}: in 2D must be 'x' or 'y' (the bar axis)")
     for face in (f for f in bars.faces if f in BOX_BOUNDARIES):

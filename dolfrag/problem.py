@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import bulk, compat, guards, loads, mesh, rebar, rebar_layout, space as spaces, supports, viscosity
+from dolfrag import (bulk, compat, guards, loads, mesh, rebar, rebar_faces, rebar_layout, space as spaces, supports,
+                     viscosity)
 from dolfrag.config import CaseError
 from dolfrag.interface import links as link_table, models
 from dolfrag.interface.jumps import Jump
@@ -81,7 +82,7 @@ class Problem:
         sliver = case.time.scheme == "imex" and guards.sliver_warning(case, bulk_ops.dt_crit)
         if sliver and comm.rank == 0:
             print(sliver, file=sys.stderr)
-        bars = _rebars(case, space, bulk_ops, comm)
+        bars = _rebars(case, domain, space, bulk_ops, comm)
         links = link_table.build(space)
         held = supports.constrained_components(space, domain, case.supports)
         if case.load.kind == "stretch":  # its ends are supports whose velocity is prescribed
@@ -109,12 +110,15 @@ def _check_boundaries(case, domain):
                             f"{', '.join(sorted(domain.boundaries)) or 'none'}")
 
 
-def _rebars(case, space, bulk_ops, comm):
+def _rebars(case, domain, space, bulk_ops, comm):
     """The case's bars (None without rebar.faces); their mass joins the bulk's, and their
     stiffness its stable step."""
     if not case.rebar.faces:
         return None
-    lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
+    if case.geometry.kind == "file":
+        lines, areas = rebar_faces.polylines(case.rebar, space, domain, comm)
+    else:
+        lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
     bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
                         eps_u=case.rebar.eps_u)
     bars.add_mass(bulk_ops.m.x.array)

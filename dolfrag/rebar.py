@@ -173,6 +173,7 @@ class Rebars:
         self.d = d
         self.counted = owned_a[keep]
         self._node_area = areas[node.bar]
+        self.x_a, self.cell_a = node.x[a], ca  # each segment's first node (m) and its cell (local)
         self.chord0 = node.x[b] - node.x[a]
         self.L = np.linalg.norm(self.chord0, axis=1)
         self.area = areas[node.bar[a]]
@@ -203,6 +204,11 @@ class Rebars:
         return self.comm.allreduce(int(self.counted.sum()))
 
     @property
+    def mass(self):
+        """The bars' mass (kg, kg/m in 2D), rho_s A L over every bar (each rank knows all)."""
+        return self.rho_s * float(self._node_area @ self.node.length)
+
+    @property
     def ruptures(self):
         """Number of ruptured segments over all ranks. Collective."""
         return self.comm.allreduce(int((self.ruptured & self.counted).sum()))
@@ -212,6 +218,15 @@ class Rebars:
         """Energy (J, J/m in 2D) this rank's counted segments dissipated: plastic work and
         the elastic energy released by ruptures."""
         return self.plastic_work + self.rupture_work
+
+    def segments(self, u):
+        """The two ends (n, 2, d) (m) of every local segment at displacement u (all local
+        components, m): each node moved with its cell."""
+        n, k = len(self.L), self.d + 1
+        U = u[self.comps].reshape(n, 2 * k, self.d)
+        start = self.x_a - np.einsum("jc,jci->ji", self.weights[:, :k], U[:, :k])  # weights of a are -lambda
+        end = self.x_a + self.chord0 + np.einsum("jc,jci->ji", self.weights[:, k:], U[:, k:])
+        return np.stack([start, end], axis=1)
 
     def add_mass(self, m):
         """Lump the bars' mass onto the local dof components of ``m`` (kg; owned and ghost,

@@ -114,6 +114,10 @@ BAD = {
     "bunker wall on a box": ("slab-3d-scabbing", ["geometry.wall=0.2"], [], "geometry.wall"),
     "bunker bars on the ground": ("bunker-h2", ["rebar.faces=['ground']"], [], "rebar.faces"),
     "bunker bars along one axis": ("bunker-h2", ["rebar.direction='x'"], [], "rebar.direction"),
+    "bars on a 2D mesh file": ("sound-bar", FILE + BARS + ["rebar.faces=['impact']"], [], "rebar.faces"),
+    "file bars along one axis": ("bunker-two-rooms", ["rebar.direction='x'"], [], "rebar.direction"),
+    "file bars on a group not in the mesh": ("bunker-two-rooms", ["rebar.faces=['roof']", "mesh.size=0.5"], [],
+                                             "roof"),
     "bunker material group not built": ("bunker-h2", ["materials.door.E=1e10", "materials.door.nu=0.2",
                                                       "materials.door.rho=2300.0"], [], "materials.door"),
 }

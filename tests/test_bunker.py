@@ -10,7 +10,7 @@ import ufl
 from mpi4py import MPI
 
 from conftest import ROOT, mpirun
-from dolfrag import bunker, compat, guards, homogenise, loads, mesh
+from dolfrag import bunker, compat, guards, homogenise, loads, mesh, rebar_faces, space as spaces
 from dolfrag.config import load_case
 from dolfrag.post import bunker as bunker_post
 
@@ -204,6 +204,11 @@ def test_a_two_room_bunker_read_from_a_geo_file_runs_with_its_groups_and_outputs
     # the .geo's concrete: the block less both rooms, the doorway and the door (m^3)
     volume = 4.6 * 2.4 * 2.2 - 2 * 2.0**3 - 0.2 * 0.8 * 2.0 - 0.9 * 0.2 * 2.0
     assert np.sum(table["volume_m3"]) == pytest.approx(volume, rel=1e-9)  # 10 digits in the csv
-    assert np.sum(table["mass_kg"]) == pytest.approx(2350.0 * volume, rel=1e-9)
+    # the bars behind the inner and outer faces: their steel, rho_s A L, is in the fragments too
+    domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF)
+    lines, areas = rebar_faces.polylines(case.rebar, spaces.create(domain), domain, MPI.COMM_SELF)
+    steel = case.rebar.rho * sum(a * np.linalg.norm(line[1] - line[0]) for line, a in zip(lines, areas))
+    assert summary["rebar"]["mass_kg"] == pytest.approx(steel, rel=1e-12) and steel > 0
+    assert np.sum(table["mass_kg"]) == pytest.approx(2350.0 * volume + steel, rel=1e-9)
     assert set(np.atleast_1d(table["group"])) == {"concrete"}
     assert "debris" in summary

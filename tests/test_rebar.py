@@ -413,6 +413,25 @@ def box_bars(comm):
     return space, rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm), lines, areas
 
 
+def test_drawn_segments_lie_on_the_bars_and_move_with_a_linear_field(box_bars):
+    """Rebars.segments (the figures' bars): at rest every segment lies on its polyline and
+    consecutive segments of a bar join; under u = A X (held exactly by P1) each end moves
+    to X + A X, whichever cell carries it (a sign or weight error moves it elsewhere)."""
+    space, bars, lines, _ = box_bars
+    rest = bars.segments(np.zeros(space.x.size))
+    assert np.allclose(rest[:, 1] - rest[:, 0], bars.chord0, rtol=0, atol=1e-15)
+    ends = rest.reshape(-1, 3)
+    distance = np.full(len(ends), np.inf)  # to the nearest bar (straight: the line through its two points)
+    for line in lines:
+        along = (line[1] - line[0]) / np.linalg.norm(line[1] - line[0])
+        distance = np.minimum(distance, np.linalg.norm(np.cross(ends - line[0], along), axis=1))
+    assert distance.max() < 1e-12
+    A = np.array([[1e-2, 2e-3, 0.0], [-3e-3, 5e-3, 1e-3], [4e-3, 0.0, -2e-3]])
+    u = (space.x @ A.T).ravel()
+    moved = bars.segments(u)
+    assert np.allclose(moved, rest + rest @ A.T, rtol=0, atol=1e-14)
+
+
 def biaxial_stretch(space, eps):
     """u = eps (x, y, 0): a uniform stretch in the plane of the layers (P1 holds it exactly)."""
     u = np.zeros(space.x.size)

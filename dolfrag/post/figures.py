@@ -8,6 +8,9 @@ from scipy.spatial import cKDTree
 
 from dolfrag.post.fragment_sizes import grady_count, mott_count
 
+# the concrete's opacity in a figure that draws the rebars inside it
+BAR_OPACITY = 0.45
+
 
 def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=None):
     """Owned cells' corner coordinates (+ displacement, flat per dof component, + the
@@ -25,7 +28,7 @@ def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=Non
 
 
 def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None,
-                    ruler=False):
+                    ruler=False, rebars=None):
     """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
     one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
     displacement is drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m:
@@ -33,7 +36,9 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     only those (e.g. half a slab, so that the cut shows the cracks inside). view (3,): in 3D,
     the direction from the body towards the camera, z up (default (1, 1, 1), isometric).
     ruler: also the axes with their coordinates (m) and a scale bar of a round length.
-    ``note`` is added to the caption. Collective; rank 0 draws."""
+    rebars (rebar.Rebars): the bars drawn as black lines, deformed alike (those in ``cells``),
+    over concrete made translucent so that the bars inside it show. ``note`` is added to the
+    caption. Collective; rank 0 draws."""
     d = space.gdim
     comm = space.mesh.comm
     umax = comm.allreduce(np.abs(u.x.array[:space.n_owned_dofs * d]).max(initial=0.0), op=MPI.MAX)
@@ -41,6 +46,7 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     if scale is None:
         scale = 0.02 * size / umax if umax > 0 else 1.0
     data = _gather_broken_mesh(space, scale * u.x.array, values, cell_offset, cells)
+    bars = None if rebars is None else _gather_bars(rebars, scale * u.x.array, cells, comm)
     if data is None:
         return
     try:
@@ -59,8 +65,12 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     grid = pv.UnstructuredGrid(conn, np.full(n_cells, cell_type, np.uint8), points)
     grid.point_data[label] = values
     plotter = pv.Plotter(off_screen=True, window_size=(1200, 600))
-    plotter.add_mesh(grid, scalars=label, cmap="viridis",
+    plotter.add_mesh(grid, scalars=label, cmap="viridis", opacity=1.0 if bars is None else BAR_OPACITY,
                      scalar_bar_args={"title": label, "vertical": False})
+    if bars is not None and len(bars):
+        ends = np.concatenate([bars, np.zeros((*bars.shape[:2], 3 - d))], axis=2).reshape(-1, 3)
+        lines = np.column_stack([np.full(len(bars), 2), np.arange(2 * len(bars)).reshape(-1, 2)]).ravel()
+        plotter.add_mesh(pv.PolyData(ends, lines=lines), color="black", line_width=2)
     plotter.add_text(f"displacement x {scale:.3g}" + (f"; {note}" if note else ""), font_size=10)
     view = np.array([0.0, 0.0, 1.0] if d == 2 else (1.0, 1.0, 1.0) if view is None else view)
     if ruler:
@@ -71,6 +81,16 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
         plotter.view_vector(view, viewup=(0.0, 0.0, 1.0))
     plotter.screenshot(str(path))
     plotter.close()
+
+
+def _gather_bars(rebars, u, cells, comm):
+    """The rebar segments each rank counts (those in ``cells``, if given) at displacement u,
+    (n, 2, d) m, gathered on rank 0 (None elsewhere)."""
+    keep = rebars.counted.copy()
+    if cells is not None:
+        keep[keep] = np.asarray(cells, bool)[rebars.cell_a[keep]]
+    gathered = comm.gather(rebars.segments(u)[keep], root=0)
+    return None if gathered is None else np.concatenate(gathered)
 
 
 def round_length(most):

@@ -66,22 +66,24 @@ def common_figures(ctx, folder, final):
     load.png for a pressure load. Collective."""
     space, integ, case = ctx.space, ctx.integ, ctx.case
     v = integ.v.x.array.reshape(-1, space.gdim)
-    broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)")
+    when = f"{case.name}, t = {integ.t * 1e6:.1f} us"
+    broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)",
+                    note=when, ruler=True)
     broken_mesh_png(space, integ.u, v[:, 0], folder / "velocity_x.png", "velocity v_x (m/s)", scale=1.0,
                     cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE),
-                    note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
-                         f"t = {integ.t * 1e6:.1f} us")
-    broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)")
+                    note=f"{when}; fragments moved apart by {EXPLODE:g} x their centroid offset")
+    broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)", note=when,
+                    ruler=True, rebars=ctx.problem.rebars if space.gdim == 3 else None)  # 2D: they lie in the mesh
     fragment_speed = np.zeros(len(space.x))
     fragment_speed[space.cell_dofs[:space.n_owned_cells]] = final.table.speed[final.fragment_of_cell][:, None]
     broken_mesh_png(space, integ.u, fragment_speed, folder / "fragments.png", "fragment speed (m/s)", scale=1.0,
                     cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE), ruler=True,
                     view=fragments_view(final.table),
-                    note=f"{case.name}, t = {integ.t * 1e6:.1f} us; each fragment coloured by its mean speed, "
+                    note=f"{when}; each fragment coloured by its mean speed, "
                          f"moved apart by {EXPLODE:g} x its centroid offset")
     fragment_masses_png(final.table.mass[~final.table.held], final.summary["fragments"]["size_distribution"],
                         folder / "fragment_masses.png", ctx.comm,
-                        f"fragments no support holds ({case.name}, t = {integ.t * 1e6:.1f} us)")
+                        f"fragments no support holds ({when})")
     if case.load.kind == "pressure":
         signal_png(loads.signal(case.load), case.time.end, folder / "load.png", ctx.comm,
                    f"load on '{case.load.boundary}' ({case.name})")

@@ -75,7 +75,7 @@ class RebarForce:
 
     def summarise(self, summary, final):
         bars, comm = self.ctx.integ.rebars, self.ctx.comm
-        summary["rebar"] = {"segments": bars.count, "peak_force_N": comm.allreduce(bars.peak_force, op=MPI.MAX),
+        summary["rebar"] = {"segments": bars.count, "mass_kg": bars.mass, "peak_force_N": comm.allreduce(bars.peak_force, op=MPI.MAX),
                             "plastic_work_J": comm.allreduce(bars.plastic_work),
                             "ruptured_segments": bars.ruptures, "rupture_energy_J": comm.allreduce(bars.rupture_work),
-                            "units": "N and J per metre of depth in 2D"}
+                            "units": "N, J and kg per metre of depth in 2D"}
