@@ -18,9 +18,13 @@ increment h B v_-, D the springs' tangent on the piece, w the link weight):
     normal row      contact: rho (g_n,N + dg_N)      open: shift
     tangent rows    stick: rho dg_T    slip: -e (mu shift [pressed] + cohesion_T)    free: 0
 
-(2D only for slip, where its direction e = +-1 is part of the piece; a 3D slip is smooth,
-not affine, and leaves the star to Newton.) Compiled (numba), one star at a time, called
-from the star kernel; no MPI: each rank predicts its own stars.
+with e the slip direction (slip_dir, per link). In 2D e = +-1 is part of the piece, and the
+prediction is exact on it. A 3D slip is smooth, not affine: its direction turns with the
+iterate, and the prediction holds e at the last step's direction (the tangent rows
+r_T - radius(r_N) e, with their Jacobian: P = 0 in star_kernel._jacobian), exact only if
+the direction stays; it is then a start for Newton, not a solve (star_kernel's APPROXIMATE).
+Compiled (numba), one star at a time, called from the star kernel; no MPI: each rank
+predicts its own stars.
 """
 import numpy as np
 from numba import njit
@@ -50,14 +54,14 @@ def spring_normal_tangent(code, k_N):
 
 @njit(cache=True, error_model="numpy")
 def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
-                    k_T, h, code, c):
+                    k_T, h, code, slip_dir, c):
     """c (q + L d) of the star's pieces ``code`` (L,) into c: momentum rows, then the
     normal rows of every link, then each tangential component of every link. slot_A,
     slot_B (L,) the copies each link joins; frame (L, d, d) link frames (normal first);
     w (L,) weights (m or m^2); rho (L,) augmentation (Pa/m); m, fixed (q,) lumped mass
     (kg) and prescribed components; rhs (q,) h f (N s); g_n, dg (L, d) m; mu (-), shift,
     cohesion_T (Pa), k_N, k_T (Pa/m) (L,) the friction, the constraint's cohesion and the
-    springs' secants; h (s)."""
+    springs' secants; h (s); slip_dir (L, d - 1) the slip direction of slipping links."""
     for i in range(q):
         c[i] = -rhs[i]
     for l in range(L):
@@ -76,11 +80,11 @@ def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, 
             c[a * d + j] -= F
         c[q + l] = rho[l] * (g_n[l, 0] + dg[l, 0]) if contact else shift[l]
         radius0 = mu[l] * shift[l] * ((cd & PRESSED) > 0) + cohesion_T[l]
-        e = -1.0 if cd & NEGATIVE else 1.0
         for i in range(1, d):
             if cd & STICK:
                 c[q + i * L + l] = rho[l] * dg[l, i]
-            elif cd & SLIP:
+            elif cd & SLIP:  # in 2D the direction is the piece's; in 3D the held one
+                e = (-1.0 if cd & NEGATIVE else 1.0) if d == 2 else slip_dir[l, i - 1]
                 c[q + i * L + l] = -e * radius0
             else:
                 c[q + i * L + l] = 0.0

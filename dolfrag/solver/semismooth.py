@@ -76,7 +76,7 @@ class StarLayout:
     the cache of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one
-    STATE = ("factors", "pivots", "codes", "cached")
+    STATE = ("factors", "pivots", "codes", "slip_dir", "cached")
 
     def __init__(self, stars, links, frame, m, h):
         d = stars.gdim
@@ -116,7 +116,8 @@ class StarLayout:
         self.factors = np.zeros(self.fac_off[-1])
         self.pivots = np.zeros(self.piv_off[-1], dtype=np.int64)
         self.codes = np.zeros(len(self.links), dtype=np.int8)
-        self.cached = np.zeros(len(L), dtype=bool)
+        self.slip_dir = np.zeros((len(self.links), max(d - 1, 1)))  # held 3D slip directions (active_set.py)
+        self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT
 
     @property
     def n_stars(self):
@@ -127,7 +128,7 @@ class StarLayout:
                 self.frozen, self.mass, self.fixed)
 
     def cache(self):
-        return self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.cached
+        return self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached
 
 
 class StarNewton:
@@ -165,7 +166,7 @@ class StarNewton:
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
         self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
-        self._entry_predicted = np.zeros(self.layout.n_stars, dtype=bool)
+        self._entry_cached = np.zeros(self.layout.n_stars, dtype=np.int8)
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
 
     needs_jumps = True  # every step: the contact work of each step is booked from them
@@ -205,7 +206,7 @@ class StarNewton:
                                 float(h), float(self.rtol), int(self.max_iterations), bool(self.predict),
                                 float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
                                 self._gbar, self._g_mid, self.status, self.star_residual, self._counters,
-                                self._entry_codes, self._entry_predicted)
+                                self._entry_codes, self._entry_cached)
         out[lay.comps] = self._x
         self.reaction[lay.comps] = self._reaction
         self.r[lay.links] = self._r
@@ -222,7 +223,7 @@ class StarNewton:
         self.model.store(lay.links, trial, np.ones(len(before), dtype=bool), g_mid[:, 0], g_mid[:, 1:])
         after = self.model.state_at(self._all_links)
         changed = after[lay.links] != before
-        renew = ~lay.cached
+        renew = lay.cached != star_kernel.EXACT
         if changed.any():  # the stars whose damage changed, with the friction and springs it gives
             renew |= np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
             per_link = self._link_data(after, self.model.friction(after), self.model.shift(after),
@@ -240,9 +241,9 @@ class StarNewton:
         per_comp = {k: geometry[k] for k in ("mass", "fixed")} | dict(rhs=rhs, x_in=x_in, comps=lay.comps)
         per_link = {k: geometry[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen")} | dict(
             g_n=g_loc, dg=dg_loc, **dict(zip(("mu", "shift", "cohesion_T", "k_N", "k_T"), per_link)),
-            codes=self._entry_codes)
+            codes=self._entry_codes, slip_dir=lay.slip_dir)
         failed = star_replay.select(stars, lay.comp_off, lay.link_off, per_comp, per_link)
-        failed.update(cached=self._entry_predicted[stars], residual=self.star_residual[stars], star=stars,
+        failed.update(cached=self._entry_cached[stars], residual=self.star_residual[stars], star=stars,
                       h=self.h, rtol=self.rtol, max_iterations=self.max_iterations, predict=self.predict,
                       floor_m=floor_m, floor_c=floor_c)
         return failed

@@ -17,6 +17,8 @@ import numpy as np
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, SLIP, STICK
 
+START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-slip prediction",
+         star_kernel.EXACT: "predicted"}
 # the kernel's inputs a dump holds, in solve_stars' order (geometry, data, cache)
 GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed")
 DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
@@ -56,12 +58,12 @@ def replay(path, **change):
     piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)])
     factors, pivots = np.zeros(fac_off[-1]), np.zeros(piv_off[-1], dtype=np.int64)
     geometry = [data[k] for k in GEOMETRY]
-    for s in np.flatnonzero(data["cached"]):  # the stored factors its prediction used
+    for s in np.flatnonzero(data["cached"] != star_kernel.NONE):  # the stored factors its prediction used
         p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
         star_kernel.factor_piece(q[s], L[s], d, data["slot_A"][l], data["slot_B"][l], data["frame"][l],
                                  data["weight"][l], data["rho"][l], data["frozen"][l], data["mass"][p],
                                  data["fixed"][p], data["mu"][l], data["k_N"][l], data["k_T"][l], float(data["h"]),
-                                 data["codes"][l], factors[fac_off[s]:fac_off[s + 1]],
+                                 data["codes"][l], data["slip_dir"][l], factors[fac_off[s]:fac_off[s + 1]],
                                  pivots[piv_off[s]:piv_off[s + 1]])
     n = len(q)
     status, residual, iterations = np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int64)
@@ -71,14 +73,15 @@ def replay(path, **change):
         sub = select(np.array([s]), comp_off, link_off,
                      {k: data[k] for k in ("mass", "fixed", "rhs", "x_in")},
                      {k: data[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu",
-                                           "shift", "cohesion_T", "k_N", "k_T", "codes")})
+                                           "shift", "cohesion_T", "k_N", "k_T", "codes", "slip_dir")})
         star_kernel.solve_stars(
             *[sub[k] for k in GEOMETRY], *[sub[k] for k in DATA], float(data["h"]), float(data["rtol"]),
             int(data["max_iterations"]), bool(data["predict"]), float(data["floor_m"]), float(data["floor_c"]),
             np.array([0, N[s] ** 2]), np.array([0, 2 * N[s] + 1]), factors[fac_off[s]:fac_off[s + 1]].copy(),
-            pivots[piv_off[s]:piv_off[s + 1]].copy(), sub["codes"].copy(), data["cached"][one].copy(),
+            pivots[piv_off[s]:piv_off[s + 1]].copy(), sub["codes"].copy(), sub["slip_dir"].copy(),
+            data["cached"][one].copy(),
             np.zeros(q[s]), np.zeros((L[s], d)), np.zeros(q[s]), np.zeros((L[s], d)), np.zeros((L[s], d)),
-            status[one], residual[one], counters, np.zeros(L[s], np.int8), np.zeros(1, bool))
+            status[one], residual[one], counters, np.zeros(L[s], np.int8), np.zeros(1, np.int8))
         iterations[s] = counters[star_kernel.ITERATIONS]
     return status, residual, iterations
 
@@ -93,7 +96,7 @@ def describe(path):
         contact, stick, slip = ((codes & bit) > 0 for bit in (CONTACT, STICK, SLIP))
         lines.append(f"star {s}: {comp_off[s + 1] - comp_off[s]} components, {len(codes)} links "
                      f"({contact.sum()} in contact, {stick.sum()} sticking, {slip.sum()} slipping), "
-                     f"{'predicted' if data['cached'][s] else 'from zero'}, run's residual {data['residual'][s]:.3g}")
+                     f"{START[int(data['cached'][s])]}, run's residual {data['residual'][s]:.3g}")
     return "\n".join(lines)
 
 
