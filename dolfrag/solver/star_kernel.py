@@ -56,7 +56,10 @@ SHORTEST = 6
 # from zero (x = 0, r = 0), the start that the solver had before predictions: measured on
 # expanding-bar (linear softening, 3 mm, normalised rate 0.1, benchmarks/robustness.py), an
 # interior ring of six rigid links wandered from its prediction through 1,000 iterations,
-# Gauss-Seidel included, and converges from zero in 6.
+# Gauss-Seidel included, and converges from zero in 6. The restart keeps the schedule of a
+# start from zero (CYCLE, FALLBACK counted from it): counted from the first iteration, a
+# random 3D slipping star that needs Gauss-Seidel (36 iterations from zero) met it 20
+# iterations early and did not converge in 100 (tests/test_star_kernel.py).
 RESTART = 10
 
 # Where the semi-smooth Newton stalls (a link sitting on the kink between stick and slip,
@@ -638,13 +641,15 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     rs[l, i] = -delta[q + i * L + l]
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
+        since = 0  # the iteration this start began after: the schedule (CYCLE, FALLBACK) counts from it
         for iteration in range(1, max_iterations + 2):
+            k = iteration - since
             scaled_m, scaled_c = _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs,
                                            h, xs, rs, floor_m, floor_c, True, Bx, gbar, slip, branch, e, force, R,
                                            react, code, scratch)
             scaled = max(scaled_m, scaled_c)
             last = iteration > max_iterations  # the best iterate, evaluated once more
-            if iteration < FALLBACK:
+            if k < FALLBACK:
                 done = scaled <= rtol
                 stalled = False
             else:  # stalled: accepted (see STALL, GIVE_UP)
@@ -680,12 +685,13 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                         gbar_out[l0 + l, i] = gbar[l, i]
                         g_mid[l0 + l, i] = gn[l, i] + 0.5 * slip[l, i]
                 break
-            if predicted and iteration == RESTART:
+            if predicted and iteration == RESTART:  # from zero, with the schedule of a start from zero
                 for i in range(q):
                     xs[i] = xi[i] if fx[i] else 0.0
                 rs[:, :] = 0.0
+                since = RESTART
                 continue
-            if iteration >= FALLBACK:
+            if k >= FALLBACK:
                 if not has_best:
                     best_x[:q], best_r[:L], has_best = xs, rs, True
                 if scaled < best_scaled:
@@ -693,13 +699,13 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             if iteration == max_iterations and has_best:
                 xs[:], rs[:, :] = best_x[:q], best_r[:L]
                 continue
-            if iteration >= FALLBACK and (iteration - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
+            if k >= FALLBACK and (k - FALLBACK) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 _gauss_seidel(q, L, d, sA, sB, fr, w, m, fx, gn, dgs, mus, shs, chs, kNs, kTs, h, b_, xs, rs, gbar,
-                              code, floor_c, min(SWEEPS * 2 ** ((iteration - FALLBACK) // 2), MAX_SWEEPS))
+                              code, floor_c, min(SWEEPS * 2 ** ((k - FALLBACK) // 2), MAX_SWEEPS))
                 continue
             newton = True
-            if CYCLE < iteration < FALLBACK:  # a shorter step along the last direction
-                if iteration == CYCLE + 1:
+            if CYCLE < k < FALLBACK:  # a shorter step along the last direction
+                if k == CYCLE + 1:
                     base_x[:q], base_r[:L], base_scaled, halvings = xs, rs, np.inf, 0
                     direction[:N] = 0.0
                 if scaled >= base_scaled and halvings < SHORTEST:
@@ -725,7 +731,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 cached[s] = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
             delta[:N] = R[:N]
             solve_star(store, index, delta[:N], work)
-            if CYCLE < iteration < FALLBACK:
+            if CYCLE < k < FALLBACK:
                 direction[:N] = -delta[:N]
             for i in range(q):
                 xs[i] -= delta[i]
