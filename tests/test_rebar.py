@@ -419,7 +419,7 @@ def test_drawn_segments_lie_on_the_bars_and_move_with_a_linear_field(box_bars):
     to X + A X, whichever cell carries it (a sign or weight error moves it elsewhere)."""
     space, bars, lines, _ = box_bars
     rest = bars.segments(np.zeros(space.x.size))
-    assert np.allclose(rest[:, 1] - rest[:, 0], bars.chord0, rtol=0, atol=1e-15)
+    assert np.allclose(rest[:, 1] - rest[:, 0], bars.chord0, rtol=0, atol=1e-15)  # the same sums, round-off
     ends = rest.reshape(-1, 3)
     distance = np.full(len(ends), np.inf)  # to the nearest bar (straight: the line through its two points)
     for line in lines:
@@ -429,7 +429,7 @@ def test_drawn_segments_lie_on_the_bars_and_move_with_a_linear_field(box_bars):
     A = np.array([[1e-2, 2e-3, 0.0], [-3e-3, 5e-3, 1e-3], [4e-3, 0.0, -2e-3]])
     u = (space.x @ A.T).ravel()
     moved = bars.segments(u)
-    assert np.allclose(moved, rest + rest @ A.T, rtol=0, atol=1e-14)
+    assert np.allclose(moved, rest + rest @ A.T, rtol=0, atol=1e-14)  # P1 holds u = A X exactly: round-off on 1e-3 m
 
 
 def biaxial_stretch(space, eps):
