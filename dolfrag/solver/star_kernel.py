@@ -763,10 +763,10 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
         N = q + L * d
-        if L == 0:
+        sA, sB, fr, w, rh, fz = slot_A[l0:l1], slot_B[l0:l1], frame[l0:l1], weight[l0:l1], rho[l0:l1], frozen[l0:l1]
+        if L == 0 or fz.any():  # no factors worth keeping (_kind)
             cached[s] = NONE
             continue
-        sA, sB, fr, w, rh, fz = slot_A[l0:l1], slot_B[l0:l1], frame[l0:l1], weight[l0:l1], rho[l0:l1], frozen[l0:l1]
         m, fx = mass[p0:p1], fixed[p0:p1]
         mus, kNs, kTs = mu[l0:l1], k_N[l0:l1], k_T[l0:l1]
         _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, rhs[p0:p1], g_n[l0:l1], dg[l0:l1], mus, shift[l0:l1],
