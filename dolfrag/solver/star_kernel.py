@@ -516,28 +516,27 @@ def solve_star(store, index, R, work):
 
 @njit(cache=True, error_model="numpy")
 def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, slip_dir, store,
-                 index):
+                 index, J, branch, e, scratch):
     """factor_star of the Jacobian of the piece ``code`` (L,) of one star with its slip
     directions slip_dir (L, d - 1) held (what keep_pieces stores for the next step's
     prediction): the branches are the code's, and the tangential projection of a slipping
     link is left out (P = 0: in 2D P = scale (1 - e^2) vanishes anyway; in 3D the direction
-    is held, solver/active_set.py). Arguments as _jacobian."""
-    branch, e = np.zeros((L, 5)), np.zeros((L, max(d - 1, 1)))
+    is held, solver/active_set.py). Arguments as _jacobian; J (N, N), branch (>= L, 5),
+    e (>= L, d - 1), scratch (>= 3 d^2) workspaces."""
     for l in range(L):
         c = code[l]
         branch[l, B_CONTACT] = 1.0 if c & CONTACT else 0.0
         branch[l, B_STICK] = 1.0 if c & STICK else 0.0
         branch[l, B_SLIP] = 1.0 if c & SLIP else 0.0
         branch[l, B_PRESSED] = 1.0 if c & PRESSED else 0.0
+        branch[l, B_SCALE] = 0.0
+        e[l, :] = 0.0
         if c & SLIP:  # in 2D the direction is the piece's; in 3D the held one
             if d == 2:
                 e[l, 0] = -1.0 if c & NEGATIVE else 1.0
             else:
                 e[l, :d - 1] = slip_dir[l, :d - 1]
-    N = q + L * d
-    J = np.empty((N, N))
-    _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J,
-              np.empty(3 * d * d))
+    _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch)
     factor_star(J, store, index)
 
 
@@ -759,6 +758,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
     code = np.empty(L_max, dtype=np.int8)
     R = np.empty(N_max)
     scratch = np.empty(3 * d * d)
+    J_work = np.empty(N_max * N_max)
     for s in stars:
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -776,7 +776,8 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
             if code[l] & SLIP:
                 slip_dir[l0 + l, :d - 1] = e[l, :d - 1]
         factor_piece(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code[:L], slip_dir[l0:l1],
-                     factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1])
+                     factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1],
+                     J_work[:N * N].reshape((N, N)), branch, e, scratch)
         codes[l0:l1] = code[:L]
         cached[s] = _kind(L, d, fz, code)
 

@@ -22,7 +22,9 @@ START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-
 # the kernel's inputs a dump holds, in solve_stars' order (geometry, data, cache)
 GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed")
 DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
-SCALARS = ("h", "rtol", "max_iterations", "predict", "floor_m", "floor_c")
+PER_COMP = ("mass", "fixed", "rhs", "x_in")
+PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
+            "codes", "slip_dir")
 
 
 def select(stars, comp_off, link_off, per_comp, per_link):
@@ -40,48 +42,40 @@ def select(stars, comp_off, link_off, per_comp, per_link):
 
 
 def dump(path, arrays, **context):
-    """Write a failed-star layout (select's dict plus codes, cached and the SCALARS) and
+    """Write a failed-star layout (select's dict of PER_COMP and PER_LINK, plus cached and the
+    scalars h, rtol, max_iterations, predict, floor_m, floor_c) and
     what the run knew of it (t, step, rank, residual) to path (.npz)."""
     np.savez(path, **arrays, **context)
 
 
 def replay(path, **change):
-    """Solve the stars of the dump at ``path`` again, from the start the run gave them;
-    ``change`` overrides scalars (e.g. max_iterations). Returns (status, residual,
+    """Solve the stars of the dump at ``path`` again, each alone, from the start the run gave
+    them; ``change`` overrides scalars (e.g. max_iterations). Returns (status, residual,
     iterations) per star, star_kernel's status codes."""
     data = dict(np.load(path))
     data.update(change)
     comp_off, link_off, d = data["comp_off"], data["link_off"], data["frame"].shape[1]
-    q, L = np.diff(comp_off), np.diff(link_off)
-    N = q + L * d
-    fac_off = np.concatenate([[0], np.cumsum(N * N)])
-    piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)])
-    factors, pivots = np.zeros(fac_off[-1]), np.zeros(piv_off[-1], dtype=np.int64)
-    geometry = [data[k] for k in GEOMETRY]
-    for s in np.flatnonzero(data["cached"] != star_kernel.NONE):  # the stored factors its prediction used
-        p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
-        star_kernel.factor_piece(q[s], L[s], d, data["slot_A"][l], data["slot_B"][l], data["frame"][l],
-                                 data["weight"][l], data["rho"][l], data["frozen"][l], data["mass"][p],
-                                 data["fixed"][p], data["mu"][l], data["k_N"][l], data["k_T"][l], float(data["h"]),
-                                 data["codes"][l], data["slip_dir"][l], factors[fac_off[s]:fac_off[s + 1]],
-                                 pivots[piv_off[s]:piv_off[s + 1]])
-    n = len(q)
+    n = len(comp_off) - 1
     status, residual, iterations = np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int64)
     for s in range(n):  # one call per star: the kernel counts iterations per call
         one = slice(s, s + 1)
+        star = select(np.array([s]), comp_off, link_off, {k: data[k] for k in PER_COMP},
+                      {k: data[k] for k in PER_LINK})
+        q, L = star["comp_off"][1], star["link_off"][1]
+        N = q + L * d
+        factors, pivots = np.zeros(N * N), np.zeros(2 * N + 1, np.int64)
+        if data["cached"][s] != star_kernel.NONE:  # the stored factors its prediction used
+            star_kernel.factor_piece(q, L, d, *[star[k] for k in GEOMETRY[2:]], star["mu"], star["k_N"],
+                                     star["k_T"], float(data["h"]), star["codes"], star["slip_dir"], factors, pivots,
+                                     np.empty((N, N)), np.empty((L, 5)), np.empty((L, max(d - 1, 1))),
+                                     np.empty(3 * d * d))
         counters = np.zeros(4, np.int64)
-        sub = select(np.array([s]), comp_off, link_off,
-                     {k: data[k] for k in ("mass", "fixed", "rhs", "x_in")},
-                     {k: data[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu",
-                                           "shift", "cohesion_T", "k_N", "k_T", "codes", "slip_dir")})
         star_kernel.solve_stars(
-            *[sub[k] for k in GEOMETRY], *[sub[k] for k in DATA], float(data["h"]), float(data["rtol"]),
+            *[star[k] for k in GEOMETRY], *[star[k] for k in DATA], float(data["h"]), float(data["rtol"]),
             int(data["max_iterations"]), bool(data["predict"]), float(data["floor_m"]), float(data["floor_c"]),
-            np.array([0, N[s] ** 2]), np.array([0, 2 * N[s] + 1]), factors[fac_off[s]:fac_off[s + 1]].copy(),
-            pivots[piv_off[s]:piv_off[s + 1]].copy(), sub["codes"].copy(), sub["slip_dir"].copy(),
-            data["cached"][one].copy(),
-            np.zeros(q[s]), np.zeros((L[s], d)), np.zeros(q[s]), np.zeros((L[s], d)), np.zeros((L[s], d)),
-            status[one], residual[one], counters, np.zeros(L[s], np.int8), np.zeros(1, np.int8))
+            np.array([0, N * N]), np.array([0, 2 * N + 1]), factors, pivots, star["codes"], star["slip_dir"],
+            data["cached"][one].copy(), np.zeros(q), np.zeros((L, d)), np.zeros(q), np.zeros((L, d)),
+            np.zeros((L, d)), status[one], residual[one], counters, np.zeros(L, np.int8), np.zeros(1, np.int8))
         iterations[s] = counters[star_kernel.ITERATIONS]
     return status, residual, iterations
 
