@@ -39,9 +39,9 @@ def _gathered_facets(space, domain, name, comm):
     group ``name``, over all ranks, each once, sorted by centroid."""
     tag = domain.boundary_tag(name)
     _, verts = space.boundary_facets(domain.facet_tags, tag)
-    mine = (space.vertex_x[verts], space.boundary_normals(domain.facet_tags, tag))
-    triangles = np.concatenate([t for t, _ in comm.allgather(mine)])
-    normals = np.concatenate([n for _, n in comm.allgather(mine)])
+    every = comm.allgather((space.vertex_x[verts], space.boundary_normals(domain.facet_tags, tag)))
+    triangles = np.concatenate([t for t, _ in every])
+    normals = np.concatenate([n for _, n in every])
     key = np.round(triangles.mean(axis=1) / domain.size, 9)  # a facet on two ranks (ghosts) counts once
     _, first = np.unique(key, axis=0, return_index=True)
     return triangles[first], normals[first]
