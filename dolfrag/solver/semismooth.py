@@ -161,7 +161,7 @@ class StarNewton:
         n_comps, n_links = len(self.layout.comps), len(self.layout.links)
         # the kernel's outputs, reused every step
         self._x, self._reaction = np.zeros(n_comps), np.zeros(n_comps)
-        self._r, self._gbar, self._g_mid = (np.zeros((n_links, d)) for _ in range(3))
+        self._r, self._gbar, self._g_mid, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
@@ -174,17 +174,18 @@ class StarNewton:
     def solve(self, f, u, g_n, v, out):
         """Velocity increments of every owned star into out[star comps].
 
-        f: flat f_ext - K u_n on local components (ghosts updated), N; u: flat u_n (m, not
-        used: the jumps carry it); g_n (n_links, gdim): link jumps of u_n (m), global frame;
-        v: flat v_{n-1/2} (m/s);
+        f: flat f_ext - K u_n on local components (ghosts updated), N; u, v: flat u_n (m)
+        and v_{n-1/2} (m/s), current on the stars' components: the links' jumps come from
+        them; g_n: not used (the integrator's jumps of u_n, which ElasticSprings reads);
         out: flat, holding on entry the increments of the prescribed components (m/s).
         Updates the model's state (damage), the contact reactions and the reactions of
         the prescribed components (``reaction``, N).
         """
         lay, h = self.layout, self.h
-        frame = lay.frame
-        g_loc = np.einsum("lij,lj->li", frame, g_n[lay.links])
-        dg_loc = h * np.einsum("lij,lj->li", frame, self.jump(v)[lay.links])
+        g_loc, dg_loc = self._g_loc, self._dg_loc  # link frame: the jumps of u_n and h v_{n-1/2}
+        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, 1.0, g_loc)
+        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, v, float(h),
+                               dg_loc)
         state_n = self.model.state_at(self._all_links)
         self._mu, self._shift = self.model.friction(state_n), self.model.shift(state_n)
         self._cohesion_T = self.model.shear_cohesion(state_n)
