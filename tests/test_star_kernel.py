@@ -216,6 +216,38 @@ def test_lu_solves_like_lapack():
         assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(A) * np.abs(expected).max())
 
 
+def _textbook_lu(A):
+    """LU in place with partial pivoting, one pivot at a time (the reference of lu_factor)."""
+    n = len(A)
+    piv = np.empty(n, np.int64)
+    for k in range(n):
+        p = k + int(np.argmax(np.abs(A[k:, k])))  # the first of equal largest, as lu_factor
+        piv[k] = p
+        A[[k, p]] = A[[p, k]]
+        if A[k, k] == 0.0:
+            continue
+        for i in range(k + 1, n):
+            A[i, k] = A[i, k] * (1.0 / A[k, k])
+            if A[i, k] != 0.0:
+                A[i, k + 1:] -= A[i, k] * A[k, k + 1:]
+    return piv
+
+
+def test_lu_factors_are_those_of_one_pivot_at_a_time():
+    """lu_factor sweeps two pivots at once; its factors and swaps are the textbook loop's bit
+    for bit, on dense and sparse matrices, with zero pivots and swaps at either pivot."""
+    rng = np.random.default_rng(8)
+    for trial in range(60):
+        N = int(rng.integers(1, 30))
+        A = rng.normal(size=(N, N)) * (rng.random((N, N)) < rng.uniform(0.2, 1.0))
+        if trial % 3 == 0 and N > 2:
+            A[:, rng.integers(0, N)] = 0.0  # a zero pivot
+        expected, LU, piv = A.copy(), A.copy(), np.empty(N, np.int64)
+        expected_piv = _textbook_lu(expected)
+        star_kernel.lu_factor(LU, piv)
+        assert np.array_equal(piv, expected_piv) and np.array_equal(LU, expected), trial
+
+
 @pytest.mark.parametrize("d", [2, 3])
 def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
     rng = np.random.default_rng(21 + d)
