@@ -2,6 +2,7 @@
 
     python benchmarks/step_cost.py [--cells 10000 100000] [--steps 200] [--law elastic|rccm]
                                    [--scheme imex|theta] [--h-factor 1] [--dim 2|3]
+                                   [--set SECTION.KEY=VALUE ...]
     mpirun -n 2 python benchmarks/step_cost.py
 
 Each imex row also gives the bytes the step must stream at least once per element (its
@@ -56,7 +57,7 @@ def timed(fn, repeat, comm, cpu=None):
 LAWS = {"elastic": [], "rccm": ["interface.law=rccm", "interface.sigma_c=4e5"]}
 
 
-def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
+def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2, overrides=()):
     case = load_case("sound-bar")
     L, W = case.geometry.length, case.geometry.width
     if dim == 2:
@@ -65,7 +66,7 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2):
     else:  # the bar as a square-section box, rollers on its four long faces
         size = np.cbrt(TETRAHEDRA_PER_VOLUME_H3 * L * W * W / cells)
         shape = ["geometry.kind=box", f"geometry.thickness={W}", 'supports.rollers=["bottom","top","front","back"]']
-    case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *shape, *LAWS[law]])
+    case = load_case("sound-bar", [f"mesh.size={size}", "time.end=1.0", *shape, *LAWS[law], *overrides])
     problem = Problem.build(case, comm)
     domain, space, integ = problem.domain, problem.space, integrator(problem)
     n_cells = space.mesh.topology.index_map(dim).size_global
@@ -104,12 +105,12 @@ def streamed_bytes(integ):
     arrays += [jump.B.data, jump.B.indices, jump.BT.data, jump.BT.indices, jump.links.normal,
                jump.links.tangents, jump.links.weight, integ.star_comps]
     solver = integ.interface
-    for group in solver.stars.groups:
-        arrays += [a for a in (group.inv, group.links, group.valid) if a is not None]
-    arrays += getattr(solver, "_step", [])
     layout = getattr(solver, "layout", None)
     if layout is not None:  # the star kernel's flat layout and its cached factors
         arrays += [*layout.geometry(), *layout.cache(), layout.comps, layout.links]
+    else:  # the elastic step's flat layout and inverses
+        fl = solver.flat
+        arrays += [fl.comps, fl.comp_off, fl.link_off, fl.slot_A, fl.slot_B, solver.K, solver.inverse, solver.inv_off]
     return sum(a.nbytes for a in arrays)
 
 
@@ -158,6 +159,8 @@ def main():
     parser.add_argument("--scheme", choices=("imex", "theta"), default="imex")
     parser.add_argument("--h-factor", type=float, default=1.0, help="theta step / imex step")
     parser.add_argument("--dim", type=int, choices=(2, 3), default=2, help="2D bar or 3D box bar")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="override a key of the bar's case, e.g. material.bulk_viscosity=false")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
@@ -167,7 +170,7 @@ def main():
               "breakdown ns/elem-step (wall) / notes")
     for target in args.cells:
         n_cells, per_step, breakdown, rss = measure(target, args.steps, comm, args.law, args.scheme, args.h_factor,
-                                                    args.dim)
+                                                    args.dim, args.set)
         if comm.rank == 0:
             print(f"{n_cells:8d} {1e3 * per_step:8.2f} {1e9 * per_step / n_cells:13.0f} {rss:13.0f}  {breakdown}")
     # after the runs, so that its array is not in their peak memory; every rank at once, as in a run

@@ -48,6 +48,10 @@ class Links:
     def __len__(self):
         return len(self.weight)
 
+    def frames(self):
+        """(n, gdim, gdim): each link's frame, the normal then the tangents, as rows."""
+        return np.concatenate([self.normal[:, None, :], self.tangents], axis=1)
+
 
 def tangent_basis(n):
     """(n, d-1, d) orthonormal tangents completing the unit normals n (n, d)."""

@@ -2,10 +2,11 @@
 
 With a lumped mass and nodal interface quadrature a link joins two copies of the same
 mesh vertex, so the step matrix ``diag(m) + c K_i`` is block-diagonal over vertex stars
-(all copies of one vertex: 2D 1-10 copies, 3D up to ~50). Each star's block is
-factorised once (here: inverted, they are small) and solved batched with numpy; stars
-are grouped by size so each group is one dense array. A rank solves the stars of the
-vertices it owns, which it holds whole: no communication.
+(all copies of one vertex: 2D 1-10 copies, 3D up to ~50). Stars are grouped by size, so
+that each group is one dense array (the linear step's blocks are inverted once, batched),
+and laid out flat (FlatStars) for the compiled loops over the stars that solve each step
+(solver/elastic_kernel.py, solver/star_kernel.py). A rank solves the stars of the vertices
+it owns, which it holds whole: no communication.
 """
 from dataclasses import dataclass
 
@@ -19,14 +20,12 @@ class StarGroup:
     comps (n_s, k*gdim): flat dof components of each star.
     links (n_s, L): the star's links (indices into the link table), padded with 0 where
     ``valid`` (n_s, L) is False; slot_A, slot_B (n_s, L): the copies each link joins.
-    inv: the inverses of the linear step blocks (see Stars.factorise).
     """
     comps: np.ndarray
     links: np.ndarray = None
     valid: np.ndarray = None
     slot_A: np.ndarray = None
     slot_B: np.ndarray = None
-    inv: np.ndarray = None
 
 
 class Stars:
@@ -85,41 +84,81 @@ class Stars:
         grp.slot_A[rows, column] = self._slot_A[mine]
         grp.slot_B[rows, column] = self._slot_B[mine]
 
-    def fixed(self, grp):
-        """(n_s, k*gdim) bool: the group's prescribed components."""
-        return self.constrained[grp.comps]
+    def flat(self, links):
+        """The stars laid out flat (FlatStars), in the order of the groups and their rows."""
+        return FlatStars(self, links)
 
-    def assemble(self, blocks, c=1.0):
-        """Per group, the star blocks (n_s, k*gdim, k*gdim) of c * sum over links of
-        [[D, -D], [-D, D]]: blocks (n_links, gdim, gdim) link stiffnesses D (N/m)."""
-        d = self.gdim
-        out = []
-        for g, grp in enumerate(self.groups):
-            n_s, q = grp.comps.shape
-            k = q // d
-            A = np.zeros((n_s, k, d, k, d))
-            mine = self._link_group == g
-            r, a, b = self._link_row[mine], self._slot_A[mine], self._slot_B[mine]
-            D = c * blocks[mine]
-            np.add.at(A, (r, a, slice(None), a), D)
-            np.add.at(A, (r, b, slice(None), b), D)
-            np.add.at(A, (r, a, slice(None), b), -D)
-            np.add.at(A, (r, b, slice(None), a), -D)
-            out.append(A.reshape(n_s, q, q))
-        return out
+    def _assemble(self, g, blocks, c):
+        """The star blocks (n_s, k*gdim, k*gdim) of group g: c * sum over links of
+        [[D, -D], [-D, D]], blocks (n_links, gdim, gdim) the link stiffnesses D (N/m)."""
+        d, grp = self.gdim, self.groups[g]
+        n_s, q = grp.comps.shape
+        k = q // d
+        A = np.zeros((n_s, k, d, k, d))
+        mine = self._link_group == g
+        r, a, b = self._link_row[mine], self._slot_A[mine], self._slot_B[mine]
+        D = c * blocks[mine]
+        np.add.at(A, (r, a, slice(None), a), D)
+        np.add.at(A, (r, b, slice(None), b), D)
+        np.add.at(A, (r, a, slice(None), b), -D)
+        np.add.at(A, (r, b, slice(None), a), -D)
+        return A.reshape(n_s, q, q)
 
-    def factorise(self, m, blocks, c):
-        """Invert diag(m) + c * sum over links of [[D, -D], [-D, D]] for every star.
+    def inverses(self, m, blocks, c):
+        """Per group, in order, the inverses (n_s, q, q) of diag(m) + c * sum over links of
+        [[D, -D], [-D, D]] (one group at a time: a 3D mesh's inverses are its largest array).
 
         m: flat lumped mass (kg) of every local dof component; blocks (n_links, gdim, gdim)
-        link stiffnesses D (N/m); c (s^2) their factor in the step matrix.
-        """
-        for grp, A in zip(self.groups, self.assemble(blocks, c)):
+        link stiffnesses D (N/m); c (s^2) their factor in the step matrix. Rows and columns
+        of prescribed components are zero (they get no increment): each inverse stays
+        symmetric."""
+        for g, grp in enumerate(self.groups):
+            A = self._assemble(g, blocks, c)
             q = A.shape[1]
             A[:, np.arange(q), np.arange(q)] += m[grp.comps]
             fixed = self.constrained[grp.comps]
             A[fixed[:, :, None] | fixed[:, None, :]] = 0.0
             A[:, np.arange(q), np.arange(q)] += fixed
             inv = np.linalg.inv(A)
-            inv[np.broadcast_to(fixed[:, None, :], inv.shape)] = 0.0  # prescribed: ignore rhs, give 0
-            grp.inv = inv
+            inv[fixed[:, :, None] | fixed[:, None, :]] = 0.0  # prescribed: ignore rhs, give 0
+            yield inv
+
+
+class FlatStars:
+    """A rank's stars flat, as compiled loops over the stars read them: star s owns the
+    components comps[comp_off[s]:comp_off[s + 1]] (copy-major, gdim per copy) and the star
+    links [link_off[s], link_off[s + 1]), each the link links[i] of the link table, joining
+    the star's copies slot_A[i] and slot_B[i]."""
+
+    def __init__(self, stars, links):
+        comps, star_links, slot_A, slot_B, q, L = [], [], [], [], [], []
+        for grp in stars.groups:
+            n_s, k_d = grp.comps.shape
+            comps.append(grp.comps)
+            q.append(np.full(n_s, k_d))
+            if grp.links is None or grp.links.shape[1] == 0:
+                L.append(np.zeros(n_s, dtype=np.int64))
+                continue
+            valid = grp.valid  # valid slots come first in each row
+            star_links.append(grp.links[valid])
+            slot_A.append(grp.slot_A[valid])
+            slot_B.append(grp.slot_B[valid])
+            L.append(valid.sum(axis=1))
+        q, L = np.concatenate(q), np.concatenate(L)
+        cat = lambda a: np.concatenate(a) if a else np.zeros(0, dtype=np.int64)  # noqa: E731
+        self.gdim, self.n_links = stars.gdim, len(links)
+        self.comps = np.ascontiguousarray(np.concatenate([c.ravel() for c in comps]), dtype=np.int64)
+        self.links = np.ascontiguousarray(cat(star_links), dtype=np.int64)
+        self.slot_A = np.ascontiguousarray(cat(slot_A), dtype=np.int64)
+        self.slot_B = np.ascontiguousarray(cat(slot_B), dtype=np.int64)
+        self.comp_off = np.concatenate([[0], np.cumsum(q)]).astype(np.int64)
+        self.link_off = np.concatenate([[0], np.cumsum(L)]).astype(np.int64)
+        self.star_of_link = np.repeat(np.arange(len(L)), L)
+
+    @property
+    def n_stars(self):
+        return len(self.comp_off) - 1
+
+    def per_link(self, values):
+        """A scalar or per-link array (over the link table) as a float array per star link."""
+        return np.ascontiguousarray(np.broadcast_to(values, (self.n_links,))[self.links], dtype=float)

@@ -24,47 +24,40 @@ increments to their owners.
 import numpy as np
 
 from dolfrag import compat, viscosity as bulk_viscosity
+from dolfrag.solver import elastic_kernel
 from dolfrag.solver.energy import global_energies
 from dolfrag.solver.semismooth import StarNewton, step_stiffness
 from dolfrag.timing import PhaseTimer
 
 
 class ElasticSprings:
-    """The linear step: star blocks A = M + h^2/4 K_i inverted once. K_i couples only the
-    copies of one vertex, so in 2D the whole step is one product per star,
-    dv = h [A^-1, -A^-1 K_i] [f; u_n], with no interface force to assemble (and no jumps
-    but for the energies). In 3D, where a star's dense operator is ~40 kB (~70 components),
-    streaming it twice costs more than the interface force it saves (measured on 27k
-    tetrahedra: 844 against 788 ns per element-step; 2D, 100k triangles: 120 against
-    165), so there dv = h A^-1 (f - K_i u_n) with K_i u_n from the link jumps."""
+    """The linear step: star blocks A = M + h^2/4 K_i inverted once, and each step
+    dv = h A^-1 (f - K_i u_n), with K_i u_n from the jumps of each star's own links, in one
+    compiled loop over the stars (solver/elastic_kernel.py)."""
 
     def __init__(self, stars, jump, model, m, h):
         self.stars, self.jump, self.model, self.h = stars, jump, model, h
         blocks = jump.tangent_blocks(model.C_N, model.C_T)
-        stars.factorise(m, blocks, h * h / 4)
-        self.needs_jumps = stars.gdim == 3
-        self._step = []
-        if not self.needs_jumps:
-            self._step = [h * np.concatenate([grp.inv, -np.matmul(grp.inv, K_i)], axis=2)
-                          for grp, K_i in zip(stars.groups, stars.assemble(blocks))]
-            for grp in stars.groups:
-                grp.inv = None  # in self._step now: half the memory
+        self.flat = flat = stars.flat(jump.links)
+        self.K = np.ascontiguousarray(blocks[flat.links])  # per star link, N/m
+        q = np.diff(flat.comp_off)
+        self.inv_off = np.concatenate([[0], np.cumsum(q * q)]).astype(np.int64)
+        self.inverse = np.empty(self.inv_off[-1])
+        first = 0  # the flat layout lists the stars group by group
+        for grp, inv in zip(stars.groups, stars.inverses(m, blocks, h * h / 4)):
+            self.inverse[self.inv_off[first]:self.inv_off[first + len(inv)]] = inv.ravel()
+            first += len(inv)
 
+    needs_jumps = False  # the kernel reads the jumps of u_n itself
     contact_dissipated = 0.0  # no contact: the springs act in compression too
     iterations = unconverged = stalled = 0  # a direct solve
     residual = 0.0
     reaction = None  # the inverted blocks give prescribed components no increment
 
     def solve(self, f, u, g_n, v, out):
-        if self.needs_jumps:
-            C_N, C_T = self.model.C_N, self.model.C_T
-            g_N, g_T = self.jump.local(g_n)
-            rhs = self.h * (f - self.jump.force(C_N * g_N, C_T * g_T))
-            for grp in self.stars.groups:
-                out[grp.comps] = np.einsum("sij,sj->si", grp.inv, rhs[grp.comps])
-            return
-        for grp, step in zip(self.stars.groups, self._step):
-            out[grp.comps] = np.einsum("sij,sj->si", step, np.concatenate([f[grp.comps], u[grp.comps]], axis=1))
+        fl = self.flat
+        elastic_kernel.elastic_stars(fl.comps, fl.comp_off, fl.link_off, fl.slot_A, fl.slot_B, self.K, self.inverse,
+                                     self.inv_off, f, u, float(self.h), out)
 
     def account(self, g_before, g_after):
         pass  # no contact work to book

@@ -40,6 +40,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag.solver import star_kernel, star_replay
+from dolfrag.interface.stars import FlatStars
 from dolfrag.solver.energy import reaction_work
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
@@ -69,40 +70,20 @@ def spring_coefficients(model, state, gdim):
     return np.array(k_N, dtype=float), np.array(k_T, dtype=float)  # writable copies: the kernel's cached types
 
 
-class StarLayout:
-    """A rank's stars flat, as the kernel reads them (solver/star_kernel.py): offsets into
-    the star components and star links, each link's copies, frame, weight, step
-    stiffness rho (Pa/m) and whether both its copies are prescribed (frozen), and
-    the cache of each star's last Jacobian factors."""
+class StarLayout(FlatStars):
+    """A rank's stars flat, as the kernel reads them (solver/star_kernel.py): the flat
+    layout (interface/stars.FlatStars), each link's frame, weight, step stiffness rho (Pa/m) and whether
+    both its copies are prescribed (frozen), each component's mass and whether it is
+    prescribed, and the cache of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one
     STATE = ("factors", "pivots", "codes", "slip_dir", "cached")
 
-    def __init__(self, stars, links, frame, m, h):
+    def __init__(self, stars, links, m, h):
+        super().__init__(stars, links)
         d = stars.gdim
-        comps, star_links, slot_A, slot_B, q, L = [], [], [], [], [], []
-        for grp in stars.groups:
-            n_s, k_d = grp.comps.shape
-            comps.append(grp.comps)
-            q.append(np.full(n_s, k_d))
-            if grp.links is None or grp.links.shape[1] == 0:
-                L.append(np.zeros(n_s, dtype=np.int64))
-                continue
-            valid = grp.valid  # valid slots come first in each row
-            star_links.append(grp.links[valid])
-            slot_A.append(grp.slot_A[valid])
-            slot_B.append(grp.slot_B[valid])
-            L.append(valid.sum(axis=1))
-        q, L = np.concatenate(q), np.concatenate(L)
-        cat = lambda a: np.concatenate(a) if a else np.zeros(0, dtype=np.int64)  # noqa: E731
-        self.comps = np.ascontiguousarray(np.concatenate([c.ravel() for c in comps]), dtype=np.int64)
-        self.links = np.ascontiguousarray(cat(star_links), dtype=np.int64)
-        self.slot_A = np.ascontiguousarray(cat(slot_A), dtype=np.int64)
-        self.slot_B = np.ascontiguousarray(cat(slot_B), dtype=np.int64)
-        self.comp_off = np.concatenate([[0], np.cumsum(q)]).astype(np.int64)
-        self.link_off = np.concatenate([[0], np.cumsum(L)]).astype(np.int64)
-        self.star_of_link = np.repeat(np.arange(len(L)), L)
-        self.frame = np.ascontiguousarray(frame[self.links])
+        q, L = np.diff(self.comp_off), np.diff(self.link_off)
+        self.frame = np.ascontiguousarray(links.frames()[self.links])  # normal, then tangents
         self.weight = np.ascontiguousarray(links.weight[self.links], dtype=float)
         self.rho = np.ascontiguousarray(step_stiffness(links, m, h, d)[self.links])
         self.mass = np.ascontiguousarray(m[self.comps])
@@ -118,10 +99,6 @@ class StarLayout:
         self.codes = np.zeros(len(self.links), dtype=np.int8)
         self.slip_dir = np.zeros((len(self.links), max(d - 1, 1)))  # held 3D slip directions (active_set.py)
         self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT
-
-    @property
-    def n_stars(self):
-        return len(self.cached)
 
     def geometry(self):
         return (self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
@@ -147,9 +124,8 @@ class StarNewton:
         self.first = 0  # stars solved at iteration 1 (from their prediction or from zero) in the last step
         self.timer = PhaseTimer()  # the integrator's, once it owns this solver
         d = stars.gdim
-        frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
-        self._frame = frame
-        self.layout = StarLayout(stars, links, frame, m, h)
+        self._frame = links.frames()
+        self.layout = StarLayout(stars, links, m, h)
         self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
         self._all_links = np.arange(len(links))
         self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
@@ -252,10 +228,9 @@ class StarNewton:
     def _link_data(self, state, mu, shift, cohesion_T):
         """Per star link, from per-link arrays of every link: friction mu, cohesion shift,
         cohesion_T, and the springs' secants k_N, k_T at ``state``."""
-        links, n = self.layout.links, len(self._all_links)
-        gather = lambda a: np.ascontiguousarray(np.broadcast_to(a, (n,))[links], dtype=float)  # noqa: E731
+        gather = self.layout.per_link
         return (gather(mu), gather(shift), gather(cohesion_T),
-                *spring_coefficients(self.model, np.ascontiguousarray(state[links]), self.stars.gdim))
+                *spring_coefficients(self.model, np.ascontiguousarray(state[self.layout.links]), self.stars.gdim))
 
     def account(self, g_before, g_after):
         """Book the work the reactions of this step did, given the global-frame jumps

@@ -80,7 +80,7 @@ class ThetaResidual:
         self.load_vector = load.x.array[self.owned].copy()  # N per Pa
         self.contact = not isinstance(model, models.Elastic)
         links = jump.links
-        self.frame = np.concatenate([links.normal[:, None, :], links.tangents], axis=1)  # (n, d, d)
+        self.frame = links.frames()  # (n, d, d)
         self.w = links.weight
         self.cA = space.components(links.dof_A[:, None])
         self.cB = space.components(links.dof_B[:, None])
