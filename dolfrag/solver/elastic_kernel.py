@@ -4,7 +4,7 @@ With linear springs K_i the implicit part of a step is, star by star,
 
     (M + h^2/4 K_i) dv = h (f - K_i u_n),
 
-whose matrices A = M + h^2/4 K_i are inverted once (interface/stars.Stars.factorise). Per
+whose matrices A = M + h^2/4 K_i are inverted once (interface/stars.Stars.inverses). Per
 star the loop gathers the star's f and u_n once, subtracts each of its links' spring
 force K_l (u_B - u_A) (K_l the link's stiffness block in global components), and
 multiplies by the stored A^-1: one pass over the inverses, no interface-wide temporaries.
@@ -52,8 +52,6 @@ def elastic_stars(comps, comp_off, link_off, slot_A, slot_B, K, inverse, inv_off
                     F += K[l, i, j] * (u_s[b + j] - u_s[a + j])
                 rhs[b + i] -= F
                 rhs[a + i] += F
-        # A^-1 is symmetric: y = sum_j rhs_j (row j), independent updates along contiguous
-        # rows, where the dot products (row i).rhs would be chains of dependent additions
         A_inv = inverse[inv_off[s]:inv_off[s] + q * q]
         if q < SHORT:  # y_i = (row i).rhs
             for i in range(q):
@@ -61,7 +59,7 @@ def elastic_stars(comps, comp_off, link_off, slot_A, slot_B, K, inverse, inv_off
                 for j in range(q):
                     acc += A_inv[i * q + j] * rhs[j]
                 y[i] = acc
-        else:  # A^-1 is symmetric: y = sum_j rhs_j (row j)
+        else:  # A^-1 is symmetric: y = sum_j rhs_j (row j), no chains of dependent additions
             y[:q] = 0.0
             for j in range(q):
                 r_j = rhs[j]

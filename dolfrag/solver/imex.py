@@ -44,7 +44,7 @@ class ElasticSprings:
         self.inv_off = np.concatenate([[0], np.cumsum(q * q)]).astype(np.int64)
         self.inverse = np.empty(self.inv_off[-1])
         first = 0  # the flat layout lists the stars group by group
-        for grp, inv in zip(stars.groups, stars.inverses(m, blocks, h * h / 4)):
+        for inv in stars.inverses(m, blocks, h * h / 4):
             self.inverse[self.inv_off[first]:self.inv_off[first + len(inv)]] = inv.ravel()
             first += len(inv)
 

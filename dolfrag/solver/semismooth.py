@@ -39,8 +39,8 @@ module gathers a step's data for it and books what it returns (damage, contact w
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.solver import star_kernel, star_replay
 from dolfrag.interface.stars import FlatStars
+from dolfrag.solver import star_kernel, star_replay
 from dolfrag.solver.energy import reaction_work
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
@@ -72,9 +72,9 @@ def spring_coefficients(model, state, gdim):
 
 class StarLayout(FlatStars):
     """A rank's stars flat, as the kernel reads them (solver/star_kernel.py): the flat
-    layout (interface/stars.FlatStars), each link's frame, weight, step stiffness rho (Pa/m) and whether
-    both its copies are prescribed (frozen), each component's mass and whether it is
-    prescribed, and the cache of each star's last Jacobian factors."""
+    layout (interface/stars.FlatStars), each link's frame, weight, step stiffness rho
+    (Pa/m) and whether both its copies are prescribed (frozen), each component's mass and
+    whether it is prescribed, and the cache of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one
     STATE = ("factors", "pivots", "codes", "slip_dir", "cached")
