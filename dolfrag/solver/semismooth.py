@@ -24,7 +24,8 @@ Lagged, every model's springs are secants fixed for the step (spring_coefficient
 
 A step starts from the affine prediction of each star's last piece (solver/active_set.py):
 most stars are solved by it, checked by one residual evaluation, and only the stars whose
-piece or damage changed pay for a Jacobian. The others start from zero.
+piece changed pay for a Jacobian: where only the damage changed, the stored factors go on
+as a chord while it contracts (star_kernel.CHORD). The others start from zero.
 
 Each star stops on its own. A star its prediction started and Newton has not solved after
 RESTART iterations starts again from zero. A star that Newton has not solved after FALLBACK iterations
@@ -77,7 +78,7 @@ class StarLayout(FlatStars):
     whether it is prescribed, and the cache of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one
-    STATE = ("factors", "pivots", "codes", "slip_dir", "cached")
+    STATE = ("factors", "pivots", "codes", "slip_dir", "cached", "factored")
 
     def __init__(self, stars, links, m, h):
         super().__init__(stars, links)
@@ -98,14 +99,16 @@ class StarLayout(FlatStars):
         self.pivots = np.zeros(self.piv_off[-1], dtype=np.int64)
         self.codes = np.zeros(len(self.links), dtype=np.int8)
         self.slip_dir = np.zeros((len(self.links), max(d - 1, 1)))  # held 3D slip directions (active_set.py)
-        self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT
+        self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT, STALE
+        self.factored = np.zeros((len(self.links), 3))  # per link: the (k_N, k_T, mu) the factors hold
 
     def geometry(self):
         return (self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
                 self.frozen, self.mass, self.fixed)
 
     def cache(self):
-        return self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached
+        return (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
+                self.factored)
 
 
 class StarNewton:
@@ -200,12 +203,12 @@ class StarNewton:
         self.model.store(lay.links, trial, np.ones(len(before), dtype=bool), g_mid[:, 0], g_mid[:, 1:])
         after = self.model.state_at(self._all_links)
         changed = after[lay.links] != before
-        renew = lay.cached != star_kernel.EXACT
-        if changed.any():  # the stars whose damage changed, with the friction and springs it gives
-            renew |= np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
+        if changed.any():  # the stars whose damage changed: their factors are now stale (CHORD)
+            damaged = np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
+            lay.cached[damaged & (lay.cached == star_kernel.EXACT)] = star_kernel.STALE
             per_link = self._link_data(after, self.model.friction(after), self.model.shift(after),
                                        self.model.shear_cohesion(after))
-        renew = np.flatnonzero(renew)
+        renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
                                     *lay.cache())
@@ -218,7 +221,7 @@ class StarNewton:
         per_comp = {k: geometry[k] for k in ("mass", "fixed")} | dict(rhs=rhs, x_in=x_in, comps=lay.comps)
         per_link = {k: geometry[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen")} | dict(
             g_n=g_loc, dg=dg_loc, **dict(zip(("mu", "shift", "cohesion_T", "k_N", "k_T"), per_link)),
-            codes=self._entry_codes, slip_dir=lay.slip_dir)
+            codes=self._entry_codes, slip_dir=lay.slip_dir, factored=lay.factored)
         failed = star_replay.select(stars, lay.comp_off, lay.link_off, per_comp, per_link)
         failed.update(cached=self._entry_cached[stars], residual=self.star_residual[stars], star=stars,
                       h=self.h, rtol=self.rtol, max_iterations=self.max_iterations, predict=self.predict,

@@ -99,10 +99,20 @@ CONVERGED, STALLED, UNCONVERGED = 0, 1, 2
 # What a star's stored factors are (``cached``): nothing usable; the Jacobian of the last
 # step's piece with 3D slip directions held (solver/active_set.py: a start for Newton, never
 # reused by it); the exact Jacobian of an affine piece (a prediction that solves the star if
-# it stays on the piece, and Newton's matrix on it). Measured on bunker-h2 at 8 ms (0.2 m,
-# 2,050 stars): 430 stars with a slipping link started from zero took 4.3 Newton iterations
-# each, half the kernel's time.
-NONE, APPROXIMATE, EXACT = 0, 1, 2
+# it stays on the piece, and Newton's matrix on it); the exact Jacobian of an affine piece
+# for the springs and friction of an earlier step (STALE: the damage of a link has changed
+# since; see CHORD). Measured on bunker-h2 at 8 ms (0.2 m, 2,050 stars): 430 stars with a
+# slipping link started from zero took 4.3 Newton iterations each, half the kernel's time.
+NONE, APPROXIMATE, EXACT, STALE = 0, 1, 2, 3
+
+# Stale factors (the piece's Jacobian for an earlier damage) stay Newton's matrix on their
+# piece - a chord iteration, which converges to the same solution as the exact matrix - as
+# long as each chord step divides the scaled residual by 1 / CHORD at least; below that a
+# fresh Jacobian is cheaper. Damage goes on changing every step in links already broken
+# (an RCCM link's beta keeps falling as w / Y' while it opens): measured on
+# wall-bending-clamped at 50 ms, 469 of 1,708 links changed their damage in a step and
+# 197 of its 359 stars were factorised again for them alone.
+CHORD = 1e-2
 
 # Indices into the counters the kernel returns.
 ITERATIONS, N_UNCONVERGED, N_STALLED, N_FIRST = 0, 1, 2, 3
@@ -619,6 +629,14 @@ def _kind(L, d, frozen, code):
     return kind
 
 
+@njit(cache=True, error_model="numpy")
+def _note_factored(L, k_N, k_T, mu, factored):
+    """factored (L, 3) = the (k_N, k_T, mu) of a star's links its factors are formed with
+    (what star_replay needs to form stale factors again)."""
+    for l in range(L):
+        factored[l, 0], factored[l, 1], factored[l, 2] = k_N[l], k_T[l], mu[l]
+
+
 # ---------------------------------------------------------------- the loop over stars
 
 @njit(cache=True, error_model="numpy")
@@ -641,7 +659,7 @@ def star_jumps(comps, comp_off, link_off, slot_A, slot_B, frame, u, scale, out):
 @njit(cache=True, error_model="numpy")
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
-                floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached,
+                floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                 x_out, r_out, reaction, gbar_out, g_mid, status, residual, counters, entry_codes, entry_cached):
     """Solve every star of the rank for this step.
 
@@ -649,9 +667,10 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     x_in (m/s: the prescribed increments); per star link (link_off): slot_A, slot_B,
     frame (d, d), weight (m or m^2), rho (Pa/m: the step's stiffness), frozen, g_n, dg
     (link frame, m: the jump of u_n and h B v_-), mu, shift, cohesion_T (Pa), k_N, k_T
-    (Pa/m). The cache (fac_off, piv_off, factors, pivots, codes, slip_dir, cached) holds each
-    star's last Jacobian, piece and slip directions, and what they are good for (NONE,
-    APPROXIMATE, EXACT); Newton's Jacobians replace them, and ``cached`` stays EXACT only
+    (Pa/m). The cache (fac_off, piv_off, factors, pivots, codes, slip_dir, cached,
+    factored) holds each star's last Jacobian, piece and slip directions, what they are
+    good for (NONE, APPROXIMATE, EXACT, STALE), and per link the (k_N, k_T, mu) they were
+    formed with; Newton's Jacobians replace them, and ``cached`` stays EXACT or STALE only
     where the star converged on the piece of its stored factors (else NONE).
 
     Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, g_mid (the springs'
@@ -660,7 +679,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     unconverged and stalled stars, the stars solved at iteration 1. For an unconverged star
     only, what star_replay needs to start it as this call did: the pieces of its stored
     factors (entry_codes, per link) and what they were if it started from their prediction
-    (entry_cached; NONE if it started from zero).
+    (entry_cached; NONE if it started from zero), and in ``factored`` the data they were
+    formed with.
     """
     n_stars = len(comp_off) - 1
     d = frame.shape[1]
@@ -675,6 +695,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     Bx, gbar, slip = np.empty((L_max, d)), np.empty((L_max, d)), np.empty((L_max, d))
     branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
     code, code_in = np.empty(L_max, dtype=np.int8), np.empty(L_max, dtype=np.int8)
+    factored_in = np.empty((L_max, 3))
     R, delta, direction = np.empty(N_max), np.empty(N_max), np.empty(N_max)
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
@@ -711,6 +732,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         predicted = cached[s] != NONE and predict and not imposed  # imposed motion: not cached
         start = cached[s] if predicted else NONE
         code_in[:L] = scode
+        factored_in[:L] = factored[l0:l1]
         if predicted:
             affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode,
                             slip_dir[l0:l1], delta)
@@ -722,6 +744,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     rs[l, i] = -delta[q + i * L + l]
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
+        chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
         since = 0  # the iteration this start began after: the schedule (CYCLE, FALLBACK) counts from it
         for iteration in range(1, max_iterations + 2):
             k = iteration - since
@@ -745,7 +768,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             if done or last:
                 # a star's stored factors stay valid if they are the Jacobian of the piece
                 # it converged on (then only damage can change them)
-                if not (cached[s] == EXACT and same and done):
+                if not ((cached[s] == EXACT or cached[s] == STALE) and same and done):
                     cached[s] = NONE
                 if done:
                     status[s] = CONVERGED if scaled <= rtol else STALLED
@@ -755,6 +778,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     status[s] = UNCONVERGED
                     counters[N_UNCONVERGED] += 1
                     entry_codes[l0:l1] = code_in[:L]
+                    factored[l0:l1] = factored_in[:L]
                     entry_cached[s] = start
                 residual[s] = scaled
                 for i in range(q):
@@ -804,11 +828,16 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 continue
             # on the piece of its stored factors (an affine piece, whose Jacobian the piece
             # and the step's data determine) a star reuses them - a prediction only short
-            # of REGULARISATION is finished by them; elsewhere a fresh Jacobian replaces them
-            if not (cached[s] == EXACT and same):
+            # of REGULARISATION is finished by them; stale ones while they contract (CHORD);
+            # elsewhere a fresh Jacobian replaces them
+            chord = cached[s] == STALE and k < CYCLE and scaled <= CHORD * chord_from
+            if same and chord:
+                chord_from = scaled
+            elif not (cached[s] == EXACT and same):
                 _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
                 factor_star(J, store, index)
                 scode[:] = code[:L]
+                _note_factored(L, kNs, kTs, mus, factored[l0:l1])
                 cached[s] = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
             delta[:N] = R[:N]
             solve_star(store, index, delta[:N], work)
@@ -823,7 +852,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
 
 @njit(cache=True, error_model="numpy")
 def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, rhs, x, r, g_n,
-                dg, mu, shift, cohesion_T, k_N, k_T, h, fac_off, piv_off, factors, pivots, codes, slip_dir, cached):
+                dg, mu, shift, cohesion_T, k_N, k_T, h, fac_off, piv_off, factors, pivots, codes, slip_dir, cached,
+                factored):
     """Store, for the next step's prediction, the LU factors of the Jacobian of the piece
     each of ``stars`` converged on (x per component, r per link), its slip directions held
     (factor_piece), with the friction, cohesion and springs (mu .. k_T per link) after the
@@ -861,6 +891,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
                      factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1],
                      J_work[:N * N].reshape((N, N)), branch, e, scratch)
         codes[l0:l1] = code[:L]
+        _note_factored(L, kNs, kTs, mus, factored[l0:l1])
         cached[s] = _kind(L, d, fz, code)
 
 
@@ -877,7 +908,7 @@ def warm():
         N = q + L * d
         cache = dict(fac_off=np.array([0, N * N]), piv_off=np.array([0, 2 * N + 1]), factors=np.zeros(N * N),
                      pivots=np.zeros(2 * N + 1, np.int64), codes=np.zeros(L, np.int8),
-                     slip_dir=np.zeros((L, max(d - 1, 1))), cached=np.zeros(1, np.int8))
+                     slip_dir=np.zeros((L, max(d - 1, 1))), cached=np.zeros(1, np.int8), factored=np.zeros((L, 3)))
         solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
                     predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
                     reaction=np.zeros(q), gbar_out=np.zeros((L, d)), g_mid=np.zeros((L, d)),

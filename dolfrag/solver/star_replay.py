@@ -18,13 +18,13 @@ from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, SLIP, STICK
 
 START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-slip prediction",
-         star_kernel.EXACT: "predicted"}
+         star_kernel.EXACT: "predicted", star_kernel.STALE: "predicted by stale factors"}
 # the kernel's inputs a dump holds, in solve_stars' order (geometry, data, cache)
 GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed")
 DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
 PER_COMP = ("mass", "fixed", "rhs", "x_in")
 PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
-            "codes", "slip_dir")
+            "codes", "slip_dir", "factored")
 
 
 def select(stars, comp_off, link_off, per_comp, per_link):
@@ -65,8 +65,9 @@ def replay(path, **change):
         N = q + L * d
         factors, pivots = np.zeros(N * N), np.zeros(2 * N + 1, np.int64)
         if data["cached"][s] != star_kernel.NONE:  # the stored factors its prediction used
-            star_kernel.factor_piece(q, L, d, *[star[k] for k in GEOMETRY[2:]], star["mu"], star["k_N"],
-                                     star["k_T"], float(data["h"]), star["codes"], star["slip_dir"], factors, pivots,
+            k_N, k_T, mu = star["factored"].T.copy()  # the data they were formed with
+            star_kernel.factor_piece(q, L, d, *[star[k] for k in GEOMETRY[2:]], mu, k_N, k_T, float(data["h"]),
+                                     star["codes"], star["slip_dir"], factors, pivots,
                                      np.empty((N, N)), np.empty((L, 5)), np.empty((L, max(d - 1, 1))),
                                      np.empty(3 * d * d))
         counters = np.zeros(4, np.int64)
@@ -74,8 +75,9 @@ def replay(path, **change):
             *[star[k] for k in GEOMETRY], *[star[k] for k in DATA], float(data["h"]), float(data["rtol"]),
             int(data["max_iterations"]), bool(data["predict"]), float(data["floor_m"]), float(data["floor_c"]),
             np.array([0, N * N]), np.array([0, 2 * N + 1]), factors, pivots, star["codes"], star["slip_dir"],
-            data["cached"][one].copy(), np.zeros(q), np.zeros((L, d)), np.zeros(q), np.zeros((L, d)),
-            np.zeros((L, d)), status[one], residual[one], counters, np.zeros(L, np.int8), np.zeros(1, np.int8))
+            data["cached"][one].copy(), star["factored"].copy(), np.zeros(q), np.zeros((L, d)), np.zeros(q),
+            np.zeros((L, d)), np.zeros((L, d)), status[one], residual[one], counters, np.zeros(L, np.int8),
+            np.zeros(1, np.int8))
         iterations[s] = counters[star_kernel.ITERATIONS]
     return status, residual, iterations
 
