@@ -147,6 +147,7 @@ class StarNewton:
         self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
         self._entry_cached = np.zeros(self.layout.n_stars, dtype=np.int8)
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
+        self._data = None  # the link states and what _data_at gave at them
 
     needs_jumps = True  # every step: the contact work of each step is booked from them
 
@@ -166,8 +167,7 @@ class StarNewton:
         star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, v, float(h),
                                dg_loc)
         state_n = self.model.state_at(self._all_links)
-        self._mu, self._shift = self.model.friction(state_n), self.model.shift(state_n)
-        self._cohesion_T = self.model.shear_cohesion(state_n)
+        self._mu, self._shift, self._cohesion_T, per_link = self._data_at(state_n)
         # A star far from the action (a millionth of the largest force or traction of this
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
         # (global, so that 1 and N ranks stop every star alike)
@@ -179,7 +179,6 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
-        per_link = self._link_data(state_n, self._mu, self._shift, self._cohesion_T)
         rhs, x_in = h * f[lay.comps], out[lay.comps]  # x_in: the prescribed increments (a copy)
         self._counters[:] = 0
         star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
@@ -206,8 +205,7 @@ class StarNewton:
         if changed.any():  # the stars whose damage changed: their factors are now stale (CHORD)
             damaged = np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
             lay.cached[damaged & (lay.cached == star_kernel.EXACT)] = star_kernel.STALE
-            per_link = self._link_data(after, self.model.friction(after), self.model.shift(after),
-                                       self.model.shear_cohesion(after))
+            per_link = self._data_at(after)[3]
         renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
@@ -228,12 +226,19 @@ class StarNewton:
                       floor_m=floor_m, floor_c=floor_c)
         return failed
 
-    def _link_data(self, state, mu, shift, cohesion_T):
-        """Per star link, from per-link arrays of every link: friction mu, cohesion shift,
-        cohesion_T, and the springs' secants k_N, k_T at ``state``."""
-        gather = self.layout.per_link
-        return (gather(mu), gather(shift), gather(cohesion_T),
-                *spring_coefficients(self.model, np.ascontiguousarray(state[self.layout.links]), self.stars.gdim))
+    def _data_at(self, state):
+        """At the link states ``state`` (of every link): friction mu, cohesion shift and
+        cohesion_T per link, and per star link the kernel's (mu, shift, cohesion_T, k_N,
+        k_T), the springs' secants. They are functions of the states alone, which stay the
+        same from most steps to the next: the last call's are returned while they do
+        (measured on wall-bending-clamped: 58 us of a 1.1 ms step)."""
+        if self._data is None or not np.array_equal(state, self._data[0]):
+            model, gather = self.model, self.layout.per_link
+            mu, shift, cohesion_T = model.friction(state), model.shift(state), model.shear_cohesion(state)
+            per_link = (gather(mu), gather(shift), gather(cohesion_T),
+                        *spring_coefficients(model, np.ascontiguousarray(state[self.layout.links]), self.stars.gdim))
+            self._data = (state.copy(), mu, shift, cohesion_T, per_link)
+        return self._data[1:]
 
     def account(self, g_before, g_after):
         """Book the work the reactions of this step did, given the global-frame jumps
