@@ -62,6 +62,34 @@ def _driving_energy(g_N, g_T, C_N, C_T):
     return (C_N * p**2 + C_T * np.sum(g_T**2, axis=-1), 2 * C_N * p, 2 * _col(C_T) * g_T)
 
 
+def rccm_damage(Y, beta_n, w, b=0.0, h=None):
+    """The RCCM damage step alone (rccm states the law): beta (n,) at driving energies
+    Y' (J/m^2, (n,)) from beta_n, and dbeta/dY' (m^2/J) where damage grows (0 elsewhere);
+    w, b, h as rccm. What the state update needs, without the traction and its tangent."""
+    Y = np.asarray(Y, dtype=float)
+    beta_n = np.broadcast_to(np.asarray(beta_n, dtype=float), Y.shape)
+    w = np.broadcast_to(np.asarray(w, dtype=float), Y.shape)
+    b = np.broadcast_to(np.asarray(b, dtype=float), Y.shape)
+    free = np.divide(w, Y, out=np.full(Y.shape, np.inf), where=Y > 0)
+    grow = free < beta_n
+    beta = np.where(grow, free, beta_n)
+    slope = -np.divide(free, Y, out=np.zeros(Y.shape), where=grow)
+    viscous = b > 0
+    if viscous.any():
+        if h is None:
+            raise ValueError("rccm: the viscous law (b > 0) needs the time step h (s)")
+        denom = b + h * Y
+        beta_visc = np.divide(h * w + b * beta_n, denom, out=beta_n.copy(), where=viscous)
+        grow_visc = viscous & (w <= beta_n * Y) & (beta_visc <= beta_n)
+        slope_visc = -np.divide(h * beta_visc, denom, out=np.zeros(Y.shape), where=grow_visc)
+        grow = np.where(viscous, grow_visc, grow)
+        beta = np.where(viscous, np.where(grow_visc, beta_visc, beta_n), beta)
+        slope = np.where(viscous, slope_visc, slope)
+    clipped = np.clip(beta, 0.0, 1.0)
+    dbeta_dY = np.where(grow & (clipped == beta), slope, 0.0)
+    return clipped, dbeta_dY
+
+
 def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
     """RCCM adhesion (Raous-Cangemi-Cocu 1999 / Monerie; LMGC90 MAC_CZM; docs/method.md).
 
@@ -94,27 +122,7 @@ def rccm(g_N, g_T, beta_n, C_N, C_T, w, b=0.0, h=None):
     """
     g_N, g_T, beta_n = (np.asarray(a, dtype=float) for a in (g_N, g_T, beta_n))
     Y, dY_dg_N, dY_dg_T = _driving_energy(g_N, g_T, C_N, C_T)
-    beta_n = np.broadcast_to(beta_n, Y.shape)
-    w = np.broadcast_to(np.asarray(w, dtype=float), Y.shape)
-    b = np.broadcast_to(np.asarray(b, dtype=float), Y.shape)
-    viscous = b > 0
-    if np.any(viscous) and h is None:
-        raise ValueError("rccm: the viscous law (b > 0) needs the time step h (s)")
-    h = 0.0 if h is None else np.asarray(h, dtype=float)
-    free = np.divide(w, Y, out=np.full(Y.shape, np.inf), where=Y > 0)
-    grow_free = free < beta_n
-    slope_free = -np.divide(free, Y, out=np.zeros(Y.shape), where=grow_free)
-    denom = b + h * Y
-    beta_visc = np.divide(h * w + b * beta_n, denom, out=beta_n.copy(), where=viscous)
-    grow_visc = viscous & (w <= beta_n * Y) & (beta_visc <= beta_n)
-    slope_visc = -np.divide(h * beta_visc, denom, out=np.zeros(Y.shape),
-                            where=grow_visc)
-    grow = np.where(viscous, grow_visc, grow_free)
-    beta = np.where(viscous, np.where(grow_visc, beta_visc, beta_n),
-                    np.where(grow_free, free, beta_n))
-    clipped = np.clip(beta, 0.0, 1.0)
-    dbeta_dY = np.where(grow & (clipped == beta), np.where(viscous, slope_visc, slope_free), 0.0)
-    beta = clipped
+    beta, dbeta_dY = rccm_damage(Y, beta_n, w, b, h)
     ds_dY = 2 * beta * dbeta_dY
     return (*_secant(g_N, g_T, C_N, C_T, beta**2, ds_dY * dY_dg_N, ds_dY[:, None] * dY_dg_T),
             beta)

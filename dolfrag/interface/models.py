@@ -138,7 +138,7 @@ class Rccm(_Model):
 
     def envelope(self, g_N, g_T, beta_n):
         """The damage the law gives at the jumps g_N, g_T from beta_n."""
-        return laws.rccm(g_N, g_T, beta_n, self.C_N, self.C_T, self.w, self.b, self.h)[-1]
+        return laws.rccm_damage(self.driving_energy(g_N, g_T), beta_n, self.w, self.b, self.h)[0]
 
     def driving_energy(self, g_N, g_T):
         """Y' = C_N <g_N>+^2 + C_T |g_T|^2 (J/m^2) at link-frame jumps g_N (n...), g_T (n..., d-1)."""
