@@ -88,6 +88,34 @@ def test_segment_slid_across_carries_E_A_stretch_over_L_along_its_chord(wall_bar
     assert total == pytest.approx(state.N[j] * state.n_hat[j], rel=1e-9)
 
 
+@pytest.mark.parametrize("bars_fixture", ["wall_bars", "box_bars"])
+def test_compiled_forces_are_the_numpy_state_and_transposed_chord_product(bars_fixture, request):
+    """Rebars.forces (compiled, segment by segment) against the numpy path it replaces,
+    -C^T (N n) from Rebars.state, on random displacements of 1e-4 m, i.e. strains of
+    ~1e-2 (slack, elastic and yielding segments alike: f_y = 500 MPa is a strain of 2.5e-3),
+    with some segments plastic already and some ruptured: the same state and forces to
+    round-off (the sums run in another order)."""
+    bars = request.getfixturevalue(bars_fixture)[1]
+    rng = np.random.default_rng(3)
+    saved = bars.f_y, bars.eps_p, bars.ruptured
+    try:
+        bars.f_y = F_Y
+        bars.eps_p = rng.uniform(0, 2e-3, len(bars.L)) * (rng.random(len(bars.L)) < 0.5)
+        bars.ruptured = rng.random(len(bars.L)) < 0.2
+        u = rng.normal(scale=1e-4, size=bars.C.shape[1])
+        f, state = bars.forces(u, commit=False)
+        reference = bars.state(u)
+        kinds = reference.N == 0, (reference.N > 0) & (reference.k > 0), reference.eps_p > bars.eps_p
+        assert all(kind.any() for kind in kinds)  # slack, elastic, yielding all checked
+        for name in ("eps", "ell", "N", "k", "eps_p"):
+            assert np.allclose(getattr(state, name), getattr(reference, name), rtol=1e-12, atol=0), name
+        assert np.allclose(state.n_hat, reference.n_hat, rtol=0, atol=1e-14)
+        f_ref = -(bars.CT @ (reference.N[:, None] * reference.n_hat).ravel())
+        assert np.allclose(f, f_ref, rtol=0, atol=1e-12 * np.abs(f_ref).max())
+    finally:
+        bars.f_y, bars.eps_p, bars.ruptured = saved
+
+
 def test_mean_cable_force_is_the_mean_of_the_law_over_the_strain_path():
     """Against the law averaged by a fine midpoint rule, across the slack and yield kinks
     both ways, and the derivative against central differences; a vanishing step gives the
