@@ -346,6 +346,16 @@ def _solve(star, geometry, link, cache):
     return x, r, counters
 
 
+def _solved_from_zero(seed, d, tries):
+    """``tries`` random stars (_star, in d dimensions) each solved from zero with an empty
+    cache: (star, geometry, link, cache, x, r, counters)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(tries):
+        star = _star(rng, d)
+        geometry, link, cache = _kernel_args(star)
+        yield (star, geometry, link, cache, *_solve(star, geometry, link, cache))
+
+
 def test_a_star_with_clamped_copies_is_solved_by_its_prediction():
     """A star of which two copies are clamped (every component prescribed, at rest), so that
     the links between them are frozen with zero jumps, keeps the factors of its piece
@@ -385,12 +395,8 @@ def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
     by a factor 4, the chord does not contract enough and a fresh Jacobian (EXACT) finishes
     the solve, at that solution too. (2D random stars whose piece the change keeps, without
     sticking links, whose REGULARISATION leaves a prediction 1e-6 short.)"""
-    rng = np.random.default_rng(7)
     tried = 0
-    for _ in range(300):
-        star = _star(rng, 2)
-        geometry, link, cache = _kernel_args(star)
-        x, r, counters = _solve(star, geometry, link, cache)
+    for star, geometry, link, cache, x, r, counters in _solved_from_zero(7, 2, 300):
         star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
         if (cache[4] & STICK).any() or cache[6][0] != star_kernel.EXACT or counters[star_kernel.N_STALLED]:
             continue
@@ -425,12 +431,8 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
     directions turned by 90 degrees it is only a start, and Newton goes on. (Random stars
     without sticking links, whose REGULARISATION leaves a prediction 1e-6 short; those the
     first solve converged to RTOL, not accepted stalled: the directions are then as exact.)"""
-    rng = np.random.default_rng(11)
     tried = first = 0
-    for _ in range(200):
-        star = _star(rng, 3)
-        geometry, link, cache = _kernel_args(star)
-        x, r, counters = _solve(star, geometry, link, cache)
+    for star, geometry, link, cache, x, r, counters in _solved_from_zero(11, 3, 200):
         star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
         slipping = (cache[4] & SLIP) > 0
         if (cache[6][0] != star_kernel.APPROXIMATE or not slipping.any() or (cache[4] & STICK).any()
@@ -457,12 +459,8 @@ def test_a_restart_from_zero_takes_the_schedule_of_a_start_from_zero():
     takes exactly the iterations a start from zero takes (backtracking and Gauss-Seidel
     counted from the restart): measured on a random 3D star that needs the Gauss-Seidel
     fallback, whose restart otherwise left it 20 iterations short of it and unconverged."""
-    rng = np.random.default_rng(11)
     checked = 0
-    for _ in range(300):
-        star = _star(rng, 3)
-        geometry, link, cache = _kernel_args(star)
-        x, r, counters = _solve(star, geometry, link, cache)
+    for star, geometry, link, cache, x, r, counters in _solved_from_zero(11, 3, 300):
         zero = counters[star_kernel.ITERATIONS]
         # solved from zero, in more than RESTART iterations and within the 100 less RESTART a restart leaves
         if counters[star_kernel.N_UNCONVERGED] or not star_kernel.RESTART < zero <= 100 - star_kernel.RESTART:
