@@ -89,7 +89,7 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2, overrid
     parts = {
         "bulk K u": lambda: integ.bulk.K_cells @ u[integ.owned],
         "ghost update": lambda: integ.f.x.scatter_forward(),
-        "star step": lambda: integ.interface.solve(integ.f.x.array, u, integ._g, None, integ.dv.x.array),
+        "star step": lambda: integ.interface.solve(integ.f.x.array, u, None, integ.dv.x.array),
     }
     breakdown = ", ".join(f"{k} {1e9 * timed(fn, steps, comm) / n_cells:.0f}" for k, fn in parts.items())
     return n_cells, per_step, f"{cpu_ns}; {breakdown}; {streamed}", rss

@@ -23,7 +23,7 @@ def test_intact_rccm_never_interpenetrates_and_closes_the_energy_balance():
     worst_gap, largest_u = 0.0, 0.0
     for _ in range(n_steps - 1):
         integ.step()
-        worst_gap = min(worst_gap, integ.jump.local(integ._g)[0].min())
+        worst_gap = min(worst_gap, integ.jump.local(integ.jump(integ.u.x.array))[0].min())
         largest_u = max(largest_u, np.abs(integ.u.x.array).max())
     energies = integ.step(energies=True)
     # Newton stops at |phi| <= 1e-10 of the reaction scale, i.e. gaps of 1e-10 r / rho

@@ -56,7 +56,7 @@ def drive(integ, comps, direction, g):
         # inertia of B's velocity change is not interface force: take it out
         R = integ.interface.reaction[B] - integ.m[B] * integ.dv.x.array[B] / h
         traction.append(R.reshape(-1, len(n)).sum(axis=0) @ n / length)
-        gap.append(integ.jump.local(integ._g)[0][0])
+        gap.append(integ.jump.local(integ.jump(integ.u.x.array))[0][0])
     return np.array(traction), np.array(gap)
 
 
@@ -161,7 +161,7 @@ def test_a_cell_pushed_into_a_free_one_never_interpenetrates(law):
     worst = 0.0
     for _ in range(50):
         integ.step()
-        worst = min(worst, integ.jump.local(integ._g)[0].min())
+        worst = min(worst, integ.jump.local(integ.jump(integ.u.x.array))[0].min())
     # B has been pushed along (its copies ring elastically about A's speed)
     B = comps["B"]
     assert np.mean(integ.v.x.array[B].reshape(-1, 2) @ n) > 0.5 * V

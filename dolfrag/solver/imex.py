@@ -48,19 +48,15 @@ class ElasticSprings:
             self.inverse[self.inv_off[first]:self.inv_off[first + len(inv)]] = inv.ravel()
             first += len(inv)
 
-    needs_jumps = False  # the kernel reads the jumps of u_n itself
     contact_dissipated = 0.0  # no contact: the springs act in compression too
     iterations = unconverged = stalled = 0  # a direct solve
     residual = 0.0
     reaction = None  # the inverted blocks give prescribed components no increment
 
-    def solve(self, f, u, g_n, v, out):
+    def solve(self, f, u, v, out):
         fl = self.flat
         elastic_kernel.elastic_stars(fl.comps, fl.comp_off, fl.link_off, fl.slot_A, fl.slot_B, self.K, self.inverse,
                                      self.inv_off, f, u, float(self.h), out)
-
-    def account(self, g_before, g_after):
-        pass  # no contact work to book
 
 
 class Imex:
@@ -74,7 +70,7 @@ class Imex:
     viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}).
     """
 
-    STATE = ("u", "v", "t", "n", "work", "_g", "_g_before", "_u_n")  # what a checkpoint keeps
+    STATE = ("u", "v", "t", "n", "work", "_u_n")  # what a checkpoint keeps
 
     def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None, viscosity=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
@@ -97,8 +93,6 @@ class Imex:
         self.t, self.n = 0.0, 0
         self.work = 0.0
         self.timer = step.timer = PhaseTimer()  # the star solver books its collective too
-        self._g = jump(self.u.x.array)
-        self._g_before = self._g.copy()  # g_{n-1}
         self._imposed = None
 
     @classmethod
@@ -158,9 +152,9 @@ class Imex:
         if self._imposed is not None:
             comps, velocity = self._imposed
             dv[comps] = velocity(self.t + h / 2) - v[comps]
-        if energies and not self.interface.needs_jumps:
-            self._g = self.jump(u)  # g_n, for the energy at the mid jump
-        self.interface.solve(f, u, self._g, v, dv)
+        if energies:
+            g_n = self.jump(u)  # for the energy at the mid jump
+        self.interface.solve(f, u, v, dv)
         mine = dv[self.star_comps]
         timer.lap("interface")
         compat.scatter_reverse_add(self.dv)
@@ -180,15 +174,11 @@ class Imex:
             compat.scatter_forward(self.u)
             timer.lap("communication")
         self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
-        if self.interface.needs_jumps or energies:
-            g_old, self._g = self._g, self.jump(u)
-            self.interface.account(self._g_before, self._g)
-            self._g_before = g_old
         self.t += h
         self.n += 1
-        timer.lap("interface")
+        timer.lap("update")
         if energies:
-            result = self._energies(Ku, (g_old + self._g) / 2)
+            result = self._energies(Ku, (g_n + self.jump(u)) / 2)
             timer.lap("diagnostics")
             return result
         return None

@@ -127,7 +127,6 @@ class StarNewton:
         self.first = 0  # stars solved at iteration 1 (from their prediction or from zero) in the last step
         self.timer = PhaseTimer()  # the integrator's, once it owns this solver
         d = stars.gdim
-        self._frame = links.frames()
         self.layout = StarLayout(stars, links, m, h)
         self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
         self._all_links = np.arange(len(links))
@@ -140,7 +139,8 @@ class StarNewton:
         n_comps, n_links = len(self.layout.comps), len(self.layout.links)
         # the kernel's outputs, reused every step
         self._x, self._reaction = np.zeros(n_comps), np.zeros(n_comps)
-        self._r, self._gbar, self._g_mid, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
+        self._r, self._gbar, self._slip, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
+        self._slip_before = np.zeros((n_links, d))  # the last step's g_n - g_{n-1} (none before the first)
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
@@ -149,17 +149,15 @@ class StarNewton:
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
         self._data = None  # the link states and what _data_at gave at them
 
-    needs_jumps = True  # every step: the contact work of each step is booked from them
-
-    def solve(self, f, u, g_n, v, out):
+    def solve(self, f, u, v, out):
         """Velocity increments of every owned star into out[star comps].
 
         f: flat f_ext - K u_n on local components (ghosts updated), N; u, v: flat u_n (m)
         and v_{n-1/2} (m/s), current on the stars' components: the links' jumps come from
-        them; g_n: not used (the integrator's jumps of u_n, which ElasticSprings reads);
-        out: flat, holding on entry the increments of the prescribed components (m/s).
+        them; out: flat, holding on entry the increments of the prescribed components (m/s).
         Updates the model's state (damage), the contact reactions and the reactions of
-        the prescribed components (``reaction``, N).
+        the prescribed components (``reaction``, N), and books the contact work
+        (contact_dissipated, model.absorb).
         """
         lay, h = self.layout, self.h
         g_loc, dg_loc = self._g_loc, self._dg_loc  # link frame: the jumps of u_n and h v_{n-1/2}
@@ -184,7 +182,7 @@ class StarNewton:
         star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                 float(h), float(self.rtol), int(self.max_iterations), bool(self.predict),
                                 float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
-                                self._gbar, self._g_mid, self.status, self.star_residual, self._counters,
+                                self._gbar, self._slip, self.status, self.star_residual, self._counters,
                                 self._entry_codes, self._entry_cached)
         out[lay.comps] = self._x
         self.reaction[lay.comps] = self._reaction
@@ -197,9 +195,10 @@ class StarNewton:
         if self.unconverged:
             self.failed = self._failed_stars(rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c)
         # the state after the step, from the accepted jumps
-        gbar, g_mid, before = self._gbar, self._g_mid, state_n[lay.links]
+        gbar, g_mid, before = self._gbar, g_loc + 0.5 * self._slip, state_n[lay.links]  # g_mid: (g_n + g_{n+1}) / 2
         trial = self.model.trial_state(gbar[:, 0], gbar[:, 1:], before, self._r[:, 0])
         self.model.store(lay.links, trial, np.ones(len(before), dtype=bool), g_mid[:, 0], g_mid[:, 1:])
+        self._book_contact_work(*per_link[1:3])
         after = self.model.state_at(self._all_links)
         changed = after[lay.links] != before
         if changed.any():  # the stars whose damage changed: their factors are now stale (CHORD)
@@ -240,16 +239,21 @@ class StarNewton:
             self._data = (state.copy(), mu, shift, cohesion_T, per_link)
         return self._data[1:]
 
-    def account(self, g_before, g_after):
-        """Book the work the reactions of this step did, given the global-frame jumps
-        g_{n-1} and g_{n+1} (n_links, gdim): -sum weight r . (g_{n+1} - g_{n-1}) / 2, its
-        share of the discrete energy balance (solver/imex.py), split by
-        energy.reaction_work: the cohesion's work is stored in the rigid links of the
-        model (model.absorb), the rest is dissipated by contact and friction."""
-        dg = np.einsum("lij,lj->li", self._frame, g_after - g_before)
-        dissipated, stored = reaction_work(self.r[:, 0], self.r[:, 1:], dg, self._shift, self._cohesion_T)
-        self.contact_dissipated += 0.5 * self.jump.links.weight @ dissipated
-        self.model.absorb(0.5 * stored)
+    def _book_contact_work(self, shift, cohesion_T):
+        """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
+        its share of the discrete energy balance (solver/imex.py), from the jump increments
+        of this step and the last (h B v_{n+1/2} + h B v_{n-1/2}, link frame), split by
+        energy.reaction_work with the step's shift and cohesion_T (Pa, per star link): the
+        cohesion's work is stored in the rigid links of the model (model.absorb), the rest
+        is dissipated by contact and friction. The stars hold every link of the rank once."""
+        lay = self.layout
+        dg = self._slip + self._slip_before
+        dissipated, stored = reaction_work(self._r[:, 0], self._r[:, 1:], dg, shift, cohesion_T)
+        self.contact_dissipated += 0.5 * lay.weight @ dissipated
+        absorbed = np.zeros(len(self.r))
+        absorbed[lay.links] = 0.5 * stored
+        self.model.absorb(absorbed)
+        self._slip_before[:] = self._slip
 
 
 class ConvergenceError(RuntimeError):

@@ -660,7 +660,7 @@ def star_jumps(comps, comp_off, link_off, slot_A, slot_B, frame, u, scale, out):
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
-                x_out, r_out, reaction, gbar_out, g_mid, status, residual, counters, entry_codes, entry_cached):
+                x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached):
     """Solve every star of the rank for this step.
 
     Per star component (flat over the stars, comp_off): mass (kg), fixed, rhs = h f (N s),
@@ -673,8 +673,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     formed with; Newton's Jacobians replace them, and ``cached`` stays EXACT or STALE only
     where the star converged on the piece of its stored factors (else NONE).
 
-    Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, g_mid (the springs'
-    jump and (g_n + g_{n+1}) / 2, m) per link; per star status (CONVERGED, STALLED,
+    Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, slip_out (the springs'
+    jump and the step's jump increment g_{n+1} - g_n = h B (v_- + x), m) per link; per star status (CONVERGED, STALLED,
     UNCONVERGED) and its final scaled residual; counters: the most iterations, the
     unconverged and stalled stars, the stars solved at iteration 1. For an unconverged star
     only, what star_replay needs to start it as this call did: the pieces of its stored
@@ -788,7 +788,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     for i in range(d):
                         r_out[l0 + l, i] = rs[l, i]
                         gbar_out[l0 + l, i] = gbar[l, i]
-                        g_mid[l0 + l, i] = gn[l, i] + 0.5 * slip[l, i]
+                        slip_out[l0 + l, i] = slip[l, i]
                 break
             if predicted and iteration == RESTART:  # from zero, with the schedule of a start from zero
                 for i in range(q):
@@ -911,7 +911,7 @@ def warm():
                      slip_dir=np.zeros((L, max(d - 1, 1))), cached=np.zeros(1, np.int8), factored=np.zeros((L, 3)))
         solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
                     predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
-                    reaction=np.zeros(q), gbar_out=np.zeros((L, d)), g_mid=np.zeros((L, d)),
+                    reaction=np.zeros(q), gbar_out=np.zeros((L, d)), slip_out=np.zeros((L, d)),
                     status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64),
                     entry_codes=np.zeros(L, np.int8), entry_cached=np.zeros(1, np.int8))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
