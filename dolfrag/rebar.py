@@ -378,7 +378,7 @@ class Rebars:
 # The explicit scheme's bar forces segment by segment, compiled: numpy's (the chords by a
 # sparse product, the norm, the law, the unit chords and the transposed product, each a
 # pass with its temporaries) cost 106 us of a 1.6 ms wall-bending-clamped step for its
-# 100 segments. ``state`` and ``cable_force`` above are what they follow
+# 198 segments. ``state`` and ``cable_force`` above are what they follow
 # (tests/test_rebar.py).
 
 @njit(cache=True, error_model="numpy")

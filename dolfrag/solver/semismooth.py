@@ -165,12 +165,12 @@ class StarNewton:
         star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, v, float(h),
                                dg_loc)
         state_n = self.model.state_at(self._all_links)
-        self._mu, self._shift, self._cohesion_T, per_link = self._data_at(state_n)
+        per_link = self._data_at(state_n)
         # A star far from the action (a millionth of the largest force or traction of this
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
         # (global, so that 1 and N ranks stop every star alike)
         force = np.abs(f).max(initial=0.0)  # N, and as a traction on the largest link (Pa)
-        mine = np.array([h * force, max(np.abs(self.r).max(initial=0.0), np.abs(self._shift).max(initial=0.0),
+        mine = np.array([h * force, max(np.abs(self.r).max(initial=0.0), np.abs(per_link[1]).max(initial=0.0),
                                         force / max(self.jump.links.weight.max(initial=0.0), 1e-300))])
         largest = np.empty(2)
         self.timer.lap("interface")
@@ -204,7 +204,7 @@ class StarNewton:
         if changed.any():  # the stars whose damage changed: their factors are now stale (CHORD)
             damaged = np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
             lay.cached[damaged & (lay.cached == star_kernel.EXACT)] = star_kernel.STALE
-            per_link = self._data_at(after)[3]
+            per_link = self._data_at(after)
         renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
@@ -226,18 +226,18 @@ class StarNewton:
         return failed
 
     def _data_at(self, state):
-        """At the link states ``state`` (of every link): friction mu, cohesion shift and
-        cohesion_T per link, and per star link the kernel's (mu, shift, cohesion_T, k_N,
-        k_T), the springs' secants. They are functions of the states alone, which stay the
-        same from most steps to the next: the last call's are returned while they do
-        (measured on wall-bending-clamped: 58 us of a 1.1 ms step)."""
+        """Per star link, the kernel's friction mu, cohesion shift and cohesion_T (Pa) and
+        the springs' secants k_N, k_T (Pa/m) at the link states ``state`` (of every link).
+        They are functions of the states alone, which stay the same from most steps to the
+        next: the last call's are returned while they do (measured on wall-bending-clamped:
+        58 us of a 1.1 ms step)."""
         if self._data is None or not np.array_equal(state, self._data[0]):
             model, gather = self.model, self.layout.per_link
-            mu, shift, cohesion_T = model.friction(state), model.shift(state), model.shear_cohesion(state)
-            per_link = (gather(mu), gather(shift), gather(cohesion_T),
-                        *spring_coefficients(model, np.ascontiguousarray(state[self.layout.links]), self.stars.gdim))
-            self._data = (state.copy(), mu, shift, cohesion_T, per_link)
-        return self._data[1:]
+            self._data = (state.copy(), (gather(model.friction(state)), gather(model.shift(state)),
+                                         gather(model.shear_cohesion(state)),
+                                         *spring_coefficients(model, np.ascontiguousarray(state[self.layout.links]),
+                                                              self.stars.gdim)))
+        return self._data[1]
 
     def _book_contact_work(self, shift, cohesion_T):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
