@@ -141,6 +141,7 @@ class StarNewton:
         self._x, self._reaction = np.zeros(n_comps), np.zeros(n_comps)
         self._r, self._gbar, self._slip, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
         self._slip_before = np.zeros((n_links, d))  # the last step's g_n - g_{n-1} (none before the first)
+        self._absorbed = np.zeros(len(links))  # the cohesion's work of a step per link, J/m^2
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
@@ -250,9 +251,8 @@ class StarNewton:
         dg = self._slip + self._slip_before
         dissipated, stored = reaction_work(self._r[:, 0], self._r[:, 1:], dg, shift, cohesion_T)
         self.contact_dissipated += 0.5 * lay.weight @ dissipated
-        absorbed = np.zeros(len(self.r))
-        absorbed[lay.links] = 0.5 * stored
-        self.model.absorb(absorbed)
+        self._absorbed[lay.links] = 0.5 * stored  # the star links are every link once: all overwritten
+        self.model.absorb(self._absorbed)
         self._slip_before[:] = self._slip
 
 
