@@ -10,15 +10,20 @@ each other down). From summary.json -> timings_s: wall time per step of the time
 the phases' means over ranks), parallel efficiency t_1 / (P t_P) and t_copy / (2 t_2), and each
 phase's share. Beyond the cores (--oversubscribe) rows measure correctness and overheads only.
 
-Predicted, for the 3D slab at production size (1 m x 1 m x 0.1 m, --production-cells N):
+Predicted, for the 3D slab at production size (1 m x 1 m x 0.1 m, --production-cells N), and
+with --cases bunker for bunker-h2's own geometry (its fine mesh: --production-cells 1167137):
     t_P = t0 + max_p(t1_bulk owned_p + t1_rest star_p)      compute, slowest part
           + X (c + t_msg(k, b))                            X ghost updates per step
           + A ceil(log2 P) tau                             A Allreduce per step
     E_P = (t0 + t1 N) / (P t_P),  t1 = t1_bulk + t1_rest
-t0, t1_bulk, t1_rest: fitted to 1-rank runs of the 3D case shrunk laterally at the same mesh
-size (time loop without output). owned_p, star_p (dolfrag.halo.Halo.star_cells), k (largest
-neighbour count), b (largest bytes sent or received per update): star partitions of the slab
-mesh into P parts on one process, scaled to N cells (b by the surface-to-volume law). c:
+t0, t1_bulk, t1_rest: fitted to the compute time per step of a rank (time loop without
+communication and output) against its cells n. The slab's points are 1-rank runs of the 3D
+case shrunk laterally at the same mesh size. The bunker does not shrink without changing its
+physics: its points are its own mesh split over the measured rank counts (use --clock cpu, so
+that ranks beyond the cores count their own work only). owned_p, star_p
+(dolfrag.halo.Halo.star_cells), k (largest neighbour count), b (largest bytes sent or received
+per update): star partitions of the case's mesh into P parts on one process, scaled to N cells
+(b by the surface-to-volume law). c:
 DOLFINx's own cost per scatter beyond its messages (a 2-rank scatter less the ping-pong model).
 t_msg: the 2-rank exchange of k messages, b bytes each way, measured here (shared memory),
 or k alpha + b beta with an assumed cluster network; tau: a 2-rank Allreduce here, or assumed.
@@ -58,14 +63,16 @@ def presets(elastic=False):
     """{key: (case, overrides, extents)}: the fixed cases, and the lateral extents (m) that
     the t(n) fit shrinks. The 3D one is a reduced slab once that case exists, else a 3D box
     version of sound-bar with the slab's interface law (with ``elastic``: sound-bar's
-    elastic springs, the cheapest step)."""
+    elastic springs, the cheapest step). The bunker runs as built, to the end of its load
+    (no extents: its t(n) points are its rank counts)."""
     law = [] if elastic else LAW
     if SLAB in builtin_cases() and not elastic:
         three = (SLAB, ["geometry.length=0.2", "geometry.width=0.2", "mesh.size=0.015", "time.end=1e-5", *OUTPUT],
                  {"length": 0.2, "width": 0.2})
     else:
         three = ("sound-bar", [*BOX, *law, "mesh.size=0.004", "time.end=4e-6", *OUTPUT], {"length": 0.12})
-    return {"3d": three, "2d": ("sound-bar", [*law, "mesh.size=0.001", "time.end=3e-6", *OUTPUT], {"length": 0.12})}
+    return {"3d": three, "2d": ("sound-bar", [*law, "mesh.size=0.001", "time.end=3e-6", *OUTPUT], {"length": 0.12}),
+            "bunker": ("bunker-h2", OUTPUT, None)}
 
 
 def shrunk(extents, fraction):
@@ -173,14 +180,15 @@ def print_measured(key, case, sets, rows):
 
 
 def fit_cost(rows):
-    """t(n) = t0 + t1 n (s per step, n cells) fitted to 1-rank rows, time loop without output,
-    with the standard error of t0 (None below 4 points); of t1, the bulk phase's share
-    t1_bulk (fitted through the origin: K u has no fixed cost to speak of) and the rest.
+    """t(n) = t0 + t1 n: a rank's compute time per step (the mean over ranks of all phases but
+    communication and output) against its cells n = cells / ranks, fitted to the rows, with
+    the standard error of t0 (None below 4 points); of t1, the bulk phase's share t1_bulk
+    (fitted through the origin: K u has no fixed cost to speak of) and the rest.
     {t0, t0_fit, t0_error, t1, t1_bulk, t1_rest, points}; t0 is the fit's, floored at 0 (a
     negative intercept means none is resolved)."""
-    n = np.array([r["cells"] for r in rows], float)
+    n = np.array([r["cells"] / r["ranks"] for r in rows])
     bulk = np.array([r["phases"]["bulk"] for r in rows])
-    t = np.array([r["total"] - r["phases"]["output"] for r in rows])
+    t = np.array([r["total"] - r["phases"]["communication"] - r["phases"]["output"] for r in rows])
     if len(n) > 3:
         (t1, t0), cov = np.polyfit(n, t, 1, cov=True)
         error = float(np.sqrt(cov[1, 1]))
@@ -188,21 +196,7 @@ def fit_cost(rows):
         (t1, t0), error = np.polyfit(n, t, 1), None
     t1_bulk = float(n @ bulk / (n @ n))
     return {"t0": max(float(t0), 0.0), "t0_fit": float(t0), "t0_error": error, "t1": float(t1), "t1_bulk": t1_bulk,
-            "t1_rest": float(t1) - t1_bulk, "points": sorted((int(c), float(x)) for c, x in zip(n, t))}
-
-
-def split_fit(rows):
-    """Cross-check of t0 from CPU-clock rows: t(n) fitted to the mean per-rank compute time
-    (all phases but communication and output) of the measured rank counts, n = cells / P:
-    the same mesh and physics split P ways (oversubscribed ranks included: CPU time leaves
-    out the others' turns, not the cache misses of the switches). (t0, t1, points) or None."""
-    use = [r for r in rows if r["copies"] == 1]
-    if len(use) < 2:
-        return None
-    n = np.array([r["cells"] / r["ranks"] for r in use])
-    t = np.array([r["total"] - r["phases"]["communication"] - r["phases"]["output"] for r in use])
-    t1, t0 = np.polyfit(n, t, 1)
-    return float(t0), float(t1), sorted(zip(n.tolist(), t.tolist()))
+            "t1_rest": float(t1) - t1_bulk, "points": sorted((float(c), float(x)) for c, x in zip(n, t))}
 
 
 def partition(geometry, size, parts):
@@ -346,8 +340,8 @@ def update_times(parts, net):
                                   for P, p in parts.items()}}, overhead
 
 
-def print_partitions(by_size, tdim, gdim):
-    print("\n### Star partitions of the slab mesh (serial, DOLFINx's partitioner)\n")
+def print_partitions(case, by_size, tdim, gdim):
+    print(f"\n### Star partitions of the {case} mesh (serial, DOLFINx's partitioner)\n")
     print("| mesh size (m) | cells | P | owned / part (max / mean) | star work (max / mean) | ghosts / part (max / mean) "
           "| neighbours (max / mean) | bytes per update (max) |")
     print("|---:|---:|---:|---|---|---|---|---:|")
@@ -368,8 +362,8 @@ def print_inputs(cost, net, overhead, exchanges, allreduces):
     error = "" if cost["t0_error"] is None else f" +- {1e3 * cost['t0_error']:.3f}"
     print(f"\nt(n) = t0 + t1 n: fitted t0 = {1e3 * cost['t0_fit']:.3f}{error} ms (used: {1e3 * cost['t0']:.3f}), "
           f"t1 = {1e9 * cost['t1']:.0f} ns "
-          f"(bulk {1e9 * cost['t1_bulk']:.0f}, rest {1e9 * cost['t1_rest']:.0f}); 1-rank points (cells, ms/step "
-          "without output): " + ", ".join(f"({n:,}, {1e3 * t:.2f})" for n, t in cost["points"]))
+          f"(bulk {1e9 * cost['t1_bulk']:.0f}, rest {1e9 * cost['t1_rest']:.0f}); points (cells per rank, ms/step "
+          "of compute): " + ", ".join(f"({n:,.0f}, {1e3 * t:.2f})" for n, t in cost["points"]))
     print(f"shared memory (2 ranks; smallest of {TRIALS} means, median in brackets): alpha = "
           f"{1e6 * net['alpha']:.2f} us, 1/beta = {1e-9 / net['beta']:.1f} GB/s, Allreduce tau = "
           f"{1e6 * net['tau']:.2f} us ({1e6 * net['allreduce']['median']:.2f}); {exchanges} ghost updates and "
@@ -418,29 +412,32 @@ def model_check(cost, geometry, size, net, exchanges, allreduces, measured, tdim
     d = net["dolfinx"]
     terms, total, _, _ = predict(cost, part, (d["forward"]["min"] + d["reverse"]["min"]) / 2, net["tau"],
                                  exchanges, allreduces)
-    print(f"\nmodel check, 3D case at 2 ranks: predicted {1e3 * total:.2f} ms / step "
+    print(f"\nmodel check, the measured case at 2 ranks: predicted {1e3 * total:.2f} ms / step "
           f"({', '.join(f'{k} {1e3 * v:.2f}' for k, v in terms.items())}), measured "
           f"{1e3 * (row['total'] - row['phases']['output']):.2f} ms / step without output")
 
 
-def predict_slab(case, sets, measured, args, tmp):
-    """The prediction of the module docstring for the slab at --production-cells, printed;
-    returns the report's entries."""
+def predict_case(key, case, sets, measured, args, tmp):
+    """The prediction of the module docstring for the slab ("3d") or the bunker at
+    --production-cells, printed; returns the report's entries."""
     c = load_case(case, sets)
     tdim = gdim = 3
-    singles = [r for r in measured if r["ranks"] == 1 and r["copies"] == 1]
-    for f in args.fit_fractions:
-        singles += launch(1, case, sets + shrunk(presets(args.elastic)["3d"][2], f), f"{tmp}/fit-{f}", args.clock,
-                          repeat=args.repeat)
-    cost = fit_cost(singles)
-    check = split_fit(measured) if args.clock == "cpu" else None
+    split = [r for r in measured if r["copies"] == 1]
+    if key == "bunker":
+        cost, check, production = fit_cost(split), None, c.geometry
+    else:
+        singles = [r for r in split if r["ranks"] == 1]
+        for f in args.fit_fractions:
+            singles += launch(1, case, sets + shrunk(presets(args.elastic)["3d"][2], f), f"{tmp}/fit-{f}", args.clock,
+                              repeat=args.repeat)
+        cost, production = fit_cost(singles), load_case(case, sets + PRODUCTION).geometry
+        check = fit_cost(split) if args.clock == "cpu" and len(split) > 1 else None
     if check:
         print("\ncross-check, per-rank compute of the measured runs (cells / P, ms/step): "
-              + ", ".join(f"({n:,.0f}, {1e3 * t:.2f})" for n, t in check[2])
-              + f": t0 = {1e3 * check[0]:.3f} ms, t1 = {1e9 * check[1]:.0f} ns")
-    production = load_case(case, sets + PRODUCTION).geometry
+              + ", ".join(f"({n:,.0f}, {1e3 * t:.2f})" for n, t in check["points"])
+              + f": t0 = {1e3 * check['t0_fit']:.3f} ms, t1 = {1e9 * check['t1']:.0f} ns")
     by_size = {s: partition(production, s, PREDICT_RANKS) for s in args.partition_sizes}
-    print_partitions(by_size, tdim, gdim)
+    print_partitions(case, by_size, tdim, gdim)
     halos, n_cells, _ = max(by_size.values(), key=lambda v: v[1])
     parts = scaled_parts(halos, n_cells, int(args.production_cells), tdim, gdim)
     net = measure_network([pattern(p) for p in parts.values()], case, sets, tmp)
@@ -455,7 +452,9 @@ def predict_slab(case, sets, measured, args, tmp):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="+", default=["3d", "2d"], choices=["3d", "2d"])
+    parser.add_argument("--cases", nargs="+", default=["3d", "2d"], choices=["3d", "2d", "bunker"],
+                        help="bunker: bunker-h2 to the end of its load, predicted at its fine mesh "
+                             "(with --clock cpu --production-cells 1167137)")
     parser.add_argument("--ranks", type=int, nargs="+", default=[1, 2, 4])
     parser.add_argument("--elastic", action="store_true",
                         help="sound-bar's elastic interfaces (3D box and 2D) instead of the slab's law")
@@ -503,8 +502,9 @@ def main():
         for key, (case, sets) in cases.items():
             report[key] = measure_case(key, case, sets, args.ranks, tmp, args.clock, args.repeat)
             print_measured(key, case, sets, report[key])
-        if "3d" in cases:
-            report.update(predict_slab(*cases["3d"], report["3d"], args, tmp))
+        for key in ("3d", "bunker"):
+            if key in cases:
+                report[f"{key}_prediction"] = predict_case(key, *cases[key], report[key], args, tmp)
     report["load_after"] = os.getloadavg()
     print(f"\nload average after: {report['load_after'][0]:.2f}")
     if args.json:
