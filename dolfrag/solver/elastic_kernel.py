@@ -7,7 +7,7 @@ With linear springs K_i the implicit part of a step is, star by star,
 whose matrices A = M + h^2/4 K_i are inverted once (interface/stars.Stars.inverses). Per
 star the loop gathers the star's f and u_n once, subtracts each of its links' spring
 force K_l (u_B - u_A) (K_l the link's stiffness block in global components), and
-multiplies by the stored A^-1: one pass over the inverses, no interface-wide temporaries.
+multiplies by the stored A^-1: one pass over the inverses.
 """
 import numpy as np
 from numba import njit
@@ -22,7 +22,7 @@ SHORT = 16
 
 
 @njit(cache=True, error_model="numpy")
-def elastic_stars(comps, comp_off, link_off, slot_A, slot_B, K, inverse, inv_off, f, u, h, out):
+def elastic_stars(comps, comp_off, link_off, slot_A, slot_B, K, inverse, inv_off, f, u, h, out, rhs, y):
     """out[comps] = h A^-1 (f - K_i u) per star.
 
     comps, comp_off, link_off, slot_A, slot_B: the flat star layout
@@ -30,43 +30,60 @@ def elastic_stars(comps, comp_off, link_off, slot_A, slot_B, K, inverse, inv_off
     w (C_N n n^T + C_T T^T T) in global components; inverse: each star's A^-1 (q, q)
     row-major from inv_off[s] (symmetric; rows and columns of prescribed components
     zero); f (N), u (m): flat over local components, current on the stars' components;
-    h (s)."""
-    d = K.shape[1]
-    q_max = 0
-    for s in range(len(comp_off) - 1):
-        q_max = max(q_max, comp_off[s + 1] - comp_off[s])
-    rhs, u_s, y = np.empty(q_max), np.empty(q_max), np.empty(q_max)
-    for s in range(len(comp_off) - 1):
+    h (s); rhs, y: workspaces like comps.
+
+    In three passes: every star's right-hand side, then every product with A^-1, then the
+    scatter. The products then stream the inverses alone, without the gathers' cache misses
+    between them (measured on 9,555 tetrahedra: 424-493 against 463-545 ns per
+    element-step for the star step, one pass per star)."""
+    n_stars = len(comp_off) - 1
+    for s in range(n_stars):
+        _right_hand_side(comps, comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1], slot_A, slot_B, K, f, u,
+                         rhs, y)  # y holds u until the products overwrite it
+    for s in range(n_stars):
         p0, q = comp_off[s], comp_off[s + 1] - comp_off[s]
-        # one gather of each component: a star's components lie in many cells, so each
-        # read is a cache miss, and per link they would be read again (measured on 9,555
-        # tetrahedra, 31 links a star: 575 against 350 ns per element-step for the springs)
+        _product(inverse[inv_off[s]:inv_off[s] + q * q], rhs[p0:p0 + q], y[p0:p0 + q])
+    for i in range(len(comps)):
+        out[comps[i]] = h * y[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _right_hand_side(comps, p0, p1, l0, l1, slot_A, slot_B, K, f, u, rhs, u_s):
+    """rhs[p0:p1] = f - K_i u on one star's components comps[p0:p1], from its links
+    [l0, l1); u_s[p0:p1] holds the star's u."""
+    d = K.shape[1]
+    # one gather of each component: a star's components lie in many cells, so each read
+    # is a cache miss, and per link they would be read again (measured on 9,555
+    # tetrahedra, 31 links a star: 575 against 350 ns per element-step for the springs)
+    for i in range(p0, p1):
+        rhs[i] = f[comps[i]]
+        u_s[i] = u[comps[i]]
+    for l in range(l0, l1):
+        a, b = p0 + slot_A[l] * d, p0 + slot_B[l] * d
+        for i in range(d):
+            F = 0.0
+            for j in range(d):
+                F += K[l, i, j] * (u_s[b + j] - u_s[a + j])
+            rhs[b + i] -= F
+            rhs[a + i] += F
+
+
+@njit(cache=True, error_model="numpy")
+def _product(A_inv, r, y):
+    """y = A^-1 r, A^-1 (q, q) symmetric, flat row-major."""
+    q = len(r)
+    if q < SHORT:  # y_i = (row i).r
         for i in range(q):
-            rhs[i] = f[comps[p0 + i]]
-            u_s[i] = u[comps[p0 + i]]
-        for l in range(link_off[s], link_off[s + 1]):
-            a, b = slot_A[l] * d, slot_B[l] * d
-            for i in range(d):
-                F = 0.0
-                for j in range(d):
-                    F += K[l, i, j] * (u_s[b + j] - u_s[a + j])
-                rhs[b + i] -= F
-                rhs[a + i] += F
-        A_inv = inverse[inv_off[s]:inv_off[s] + q * q]
-        if q < SHORT:  # y_i = (row i).rhs
-            for i in range(q):
-                acc = 0.0
-                for j in range(q):
-                    acc += A_inv[i * q + j] * rhs[j]
-                y[i] = acc
-        else:  # A^-1 is symmetric: y = sum_j rhs_j (row j), no chains of dependent additions
-            y[:q] = 0.0
+            acc = 0.0
             for j in range(q):
-                r_j = rhs[j]
-                for i in range(q):
-                    y[i] += r_j * A_inv[j * q + i]
-        for i in range(q):
-            out[comps[p0 + i]] = h * y[i]
+                acc += A_inv[i * q + j] * r[j]
+            y[i] = acc
+    else:  # y = sum_j r_j (row j), no chains of dependent additions
+        y[:] = 0.0
+        for j in range(q):
+            r_j = r[j]
+            for i in range(q):
+                y[i] += r_j * A_inv[j * q + i]
 
 
 def warm():
@@ -75,4 +92,4 @@ def warm():
         q = 2 * d
         elastic_stars(np.arange(q), np.array([0, q]), np.array([0, 1]), np.array([0]), np.array([1]),
                       np.eye(d)[None].copy(), np.eye(q).ravel(), np.array([0, q * q]), np.ones(q), np.zeros(q), 1.0,
-                      np.zeros(q))
+                      np.zeros(q), np.empty(q), np.empty(q))

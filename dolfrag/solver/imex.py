@@ -47,6 +47,7 @@ class ElasticSprings:
         for inv in stars.inverses(m, blocks, h * h / 4):
             self.inverse[self.inv_off[first]:self.inv_off[first + len(inv)]] = inv.ravel()
             first += len(inv)
+        self._rhs, self._y = np.empty(len(flat.comps)), np.empty(len(flat.comps))
 
     contact_dissipated = 0.0  # no contact: the springs act in compression too
     iterations = unconverged = stalled = 0  # a direct solve
@@ -56,7 +57,7 @@ class ElasticSprings:
     def solve(self, f, u, v, out):
         fl = self.flat
         elastic_kernel.elastic_stars(fl.comps, fl.comp_off, fl.link_off, fl.slot_A, fl.slot_B, self.K, self.inverse,
-                                     self.inv_off, f, u, float(self.h), out)
+                                     self.inv_off, f, u, float(self.h), out, self._rhs, self._y)
 
 
 class Imex:
@@ -86,6 +87,7 @@ class Imex:
         self.star_comps = comps
         # updated here: owned components, plus the ghost ones of this rank's stars
         self.star_ghosts = comps[comps >= self.owned.stop]
+        self.star_shared = self._shared(comps)
         g = load.x.array[self.owned]
         self.loaded = np.flatnonzero(g)
         self.g_load = g[self.loaded]
@@ -94,6 +96,15 @@ class Imex:
         self.work = 0.0
         self.timer = step.timer = PhaseTimer()  # the star solver books its collective too
         self._imposed = None
+
+    def _shared(self, comps):
+        """Of this rank's star components, those a reverse update of dv may change: the
+        owned ones another rank holds as ghosts, and the ghost ones (none in serial).
+        Collective."""
+        held = compat.Function(self.space.V)
+        held.x.array[self.owned.stop:] = 1.0
+        compat.scatter_reverse_add(held)
+        return comps[(comps >= self.owned.stop) | (held.x.array[comps] != 0)]
 
     @classmethod
     def from_problem(cls, problem, h=None, load=None, pressure=None, step=None):
@@ -155,11 +166,11 @@ class Imex:
         if energies:
             g_n = self.jump(u)  # for the energy at the mid jump
         self.interface.solve(f, u, v, dv)
-        mine = dv[self.star_comps]
+        mine = dv[self.star_shared]
         timer.lap("interface")
         compat.scatter_reverse_add(self.dv)
         timer.lap("communication")
-        dv[self.star_comps] = mine
+        dv[self.star_shared] = mine
 
         v_old_loaded = v[own][self.loaded]
         v[own] += dv[own]
