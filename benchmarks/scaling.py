@@ -1,6 +1,6 @@
 """Parallel scaling of the imex step: measured at 1, 2, 4, ... ranks, predicted at 16, 128, 1024.
 
-    python benchmarks/scaling.py [--cases 3d 2d] [--ranks 1 2 4] [--elastic] [--set SECTION.KEY=VALUE ...]
+    python benchmarks/scaling.py [--cases 3d 2d bunker] [--ranks 1 2 4] [--elastic] [--set SECTION.KEY=VALUE ...]
         [--clock wall|cpu] [--repeat 1] [--fit-fractions 0.125 0.25 0.5] [--partition-sizes 0.015] [--json FILE]
     mpirun -n P python benchmarks/scaling.py [--cases 3d]     # this rank count's rows only
 
