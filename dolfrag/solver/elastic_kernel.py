@@ -5,9 +5,9 @@ With linear springs K_i the implicit part of a step is, star by star,
     (M + h^2/4 K_i) dv = h (f - K_i u_n),
 
 whose matrices A = M + h^2/4 K_i are inverted once (interface/stars.Stars.inverses). Per
-star the loop gathers the star's f and u_n once, subtracts each of its links' spring
-force K_l (u_B - u_A) (K_l the link's stiffness block in global components), and
-multiplies by the stored A^-1: one pass over the inverses.
+star the loop gathers the star's f and u_n once and subtracts each of its links' spring
+force K_l (u_B - u_A) (K_l the link's stiffness block in global components); then it
+multiplies each star's result by its stored A^-1, one pass over the inverses.
 """
 import numpy as np
 from numba import njit
