@@ -475,3 +475,23 @@ def test_a_restart_from_zero_takes_the_schedule_of_a_start_from_zero():
             assert again[star_kernel.ITERATIONS] == star_kernel.RESTART + zero and not again[star_kernel.N_UNCONVERGED]
             checked += 1
     assert checked >= 3
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("b, mu_i", [(0.0, 0.0), (0.0, 0.5), (1e-5, 0.5)], ids=["plain", "mu_i", "viscous"])
+def test_compiled_rccm_trial_state_is_the_numpy_one(d, b, mu_i):
+    """Rccm.trial_state (interface/rccm_kernel.py) against models.threshold_trial_state, its
+    numpy reference, on links sound, damaged and broken, opening and pressed, below and past
+    their threshold: the same operations in the same order, so bit for bit."""
+    n, C_N, C_T, w = 4000, 1e12, 4e11, 0.16
+    rng = np.random.default_rng(11)
+    model = models.Rccm(n, C_N, C_T, w, b=b, mu=0.3, h=1e-7, mu_i=mu_i)
+    u0 = np.sqrt(w / C_N)  # the opening where damage starts from sound
+    g_N = u0 * rng.uniform(-3.0, 30.0, n)
+    g_T = u0 * rng.uniform(-3.0, 3.0, (n, d - 1))
+    beta_n = np.select([rng.random(n) < 0.2, rng.random(n) < 0.3], [0.0, 1.0], rng.uniform(0.0, 1.0, n))
+    r_N = np.where(g_N < 0, rng.uniform(0.0, 1e6, n), 0.0)  # Pa: the shear resisted ~ u0
+    for pressure in (None, r_N):
+        compiled = model.trial_state(g_N, g_T, beta_n, pressure)
+        np.testing.assert_array_equal(compiled, models.threshold_trial_state(model, g_N, g_T, beta_n, pressure))
+        assert (compiled < beta_n).sum() > n // 10 and (compiled == beta_n).sum() > n // 10  # both branches met

@@ -8,9 +8,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dolfrag.interface import laws
+from dolfrag.interface import laws, rccm_kernel
 
-# Relative margin of the damage-threshold test in Rccm.trial_state: links this close to
+# Relative margin of the damage-threshold test of the RCCM trial states: links this close to
 # their threshold go to the envelope, which decides exactly (round-off of w / beta_n
 # against the law's own test w / Y' < beta_n is ~1e-16).
 THRESHOLD_MARGIN = 1e-9
@@ -19,6 +19,8 @@ THRESHOLD_MARGIN = 1e-9
 # counted broken past 10 u0 (beta = 1/100, traction sigma_c / 1000), the criterion of
 # LMGC90's example scripts.
 BROKEN_BETA = 1e-2
+
+_NO_PRESSURE = np.zeros(0)  # r_N not given: the whole shear drives damage
 
 
 class Cohesion(NamedTuple):
@@ -123,17 +125,13 @@ class Rccm(_Model):
     def trial_state(self, g_N, g_T, beta_n, r_N=None):
         """The damage the law gives at these jumps (the state after the step); r_N (Pa,
         >= 0 in compression, or None): the contact pressure of the same iterate, for mu_i.
-
-        Only links whose driving energy Y' passes the damage threshold of their beta_n can
-        damage (mu_i only lowers Y'); the envelope is evaluated on those alone, and
-        decides (THRESHOLD_MARGIN keeps the test from missing one by round-off)."""
-        may = self.driving_energy(g_N, g_T) > (1 - THRESHOLD_MARGIN) * self.damage_threshold(beta_n)
-        beta = beta_n.copy()
-        if may.any():
-            g_N, g_T, beta_n = g_N[may], g_T[may], beta_n[may]
-            drive = g_T if r_N is None or self.mu_i == 0 else laws.mohr_coulomb_shear(
-                g_T, r_N[may], beta_n**2, self.C_T, self.mu_i)
-            beta[may] = self.envelope(g_N, drive, beta_n)
+        Compiled (interface/rccm_kernel.py); threshold_trial_state is its reference."""
+        if self.b > 0 and self.h is None:
+            raise ValueError("rccm: the viscous law (b > 0) needs the time step h (s)")
+        flat = [np.ascontiguousarray(a, dtype=float) for a in (g_N, g_T, beta_n, _NO_PRESSURE if r_N is None else r_N)]
+        beta = np.empty(len(flat[2]))
+        rccm_kernel.trial_state(*flat, float(self.C_N), float(self.C_T), float(self.w), float(self.b),
+                                float(self.h or 0.0), float(self.mu_i), THRESHOLD_MARGIN, beta)
         return beta
 
     def envelope(self, g_N, g_T, beta_n):
@@ -181,6 +179,22 @@ class Rccm(_Model):
         return 1.0 - self.beta
 
 
+def threshold_trial_state(model, g_N, g_T, beta_n, r_N=None):
+    """An RCCM-type model's trial state in numpy: the damage its envelope gives at these
+    jumps, as Rccm.trial_state. Only links whose driving energy Y' passes the damage
+    threshold of their beta_n can damage (mu_i only lowers Y'); the envelope is evaluated
+    on those alone, and decides (THRESHOLD_MARGIN keeps the test from missing one by
+    round-off)."""
+    may = model.driving_energy(g_N, g_T) > (1 - THRESHOLD_MARGIN) * model.damage_threshold(beta_n)
+    beta = beta_n.copy()
+    if may.any():
+        g_N, g_T, beta_n = g_N[may], g_T[may], beta_n[may]
+        drive = g_T if r_N is None or model.mu_i == 0 else laws.mohr_coulomb_shear(
+            g_T, r_N[may], beta_n**2, model.C_T, model.mu_i)
+        beta[may] = model.envelope(g_N, drive, beta_n)
+    return beta
+
+
 class RccmDecoupled(Rccm):
     """RCCM springs whose strength sigma_c (Pa) and toughness G_c (J/m^2) are independent
     of C_N (laws.rccm_decoupled, in the spirit of LMGC90's MP3_CZM): the effective traction
@@ -190,6 +204,9 @@ class RccmDecoupled(Rccm):
     def __init__(self, n_links, C_N, C_T, sigma_c, G_c, mu=0.0, mu_i=0.0):
         super().__init__(n_links, C_N, C_T, w=G_c, mu=mu, mu_i=mu_i)
         self.sigma_c, self.G_c = sigma_c, G_c
+
+    def trial_state(self, g_N, g_T, beta_n, r_N=None):
+        return threshold_trial_state(self, g_N, g_T, beta_n, r_N)
 
     def envelope(self, g_N, g_T, beta_n):
         return laws.rccm_decoupled(g_N, g_T, beta_n, self.C_N, self.C_T, self.sigma_c, self.G_c)[-1]
