@@ -86,6 +86,8 @@ class Rccm(_Model):
     STATE = ("beta", "released")  # what a checkpoint keeps
 
     def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None, mu_i=0.0):
+        if b > 0:  # the viscous update's own check (laws.rccm_damage), once, not every step
+            laws.rccm_damage(np.zeros(1), 1.0, w, b, h)
         self.C_N, self.C_T, self.w, self.b, self.mu, self.h = C_N, C_T, w, b, mu, h
         self.mu_i = mu_i
         self.beta = np.ones(n_links)
@@ -126,8 +128,6 @@ class Rccm(_Model):
         """The damage the law gives at these jumps (the state after the step); r_N (Pa,
         >= 0 in compression, or None): the contact pressure of the same iterate, for mu_i.
         Compiled (interface/rccm_kernel.py); threshold_trial_state is its reference."""
-        if self.b > 0 and self.h is None:
-            raise ValueError("rccm: the viscous law (b > 0) needs the time step h (s)")
         flat = [np.ascontiguousarray(a, dtype=float) for a in (g_N, g_T, beta_n, _NO_PRESSURE if r_N is None else r_N)]
         beta = np.empty(len(flat[2]))
         rccm_kernel.trial_state(*flat, float(self.C_N), float(self.C_T), float(self.w), float(self.b),
