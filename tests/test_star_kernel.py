@@ -495,3 +495,29 @@ def test_compiled_rccm_trial_state_is_the_numpy_one(d, b, mu_i):
         compiled = model.trial_state(g_N, g_T, beta_n, pressure)
         np.testing.assert_array_equal(compiled, models.threshold_trial_state(model, g_N, g_T, beta_n, pressure))
         assert (compiled < beta_n).sum() > n // 10 and (compiled == beta_n).sum() > n // 10  # both branches met
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_compiled_rccm_store_books_the_released_energy(d):
+    """Rccm.store (rccm_kernel.store) on a shuffled subset of links, from link-frame jump
+    columns as the star solver passes them: beta takes the new damage, and each link whose
+    damage fell releases 1/2 (beta_n^2 - beta^2)(C_N <g_N>+^2 + C_T |g_T|^2), the elastic
+    energy the lagged secant held (evaluated here in numpy; the same operations: to round-off)."""
+    n, C_N, C_T, w = 3000, 1e12, 4e11, 0.16
+    rng = np.random.default_rng(12)
+    model = models.Rccm(n, C_N, C_T, w)
+    model.beta[:] = rng.uniform(0.0, 1.0, n)
+    model.released[:] = rng.uniform(0.0, 1.0, n)
+    beta_n, released_n = model.beta.copy(), model.released.copy()
+    links = rng.permutation(n)[: 2 * n // 3]
+    state = np.where(rng.random(len(links)) < 0.5, beta_n[links], beta_n[links] * rng.random(len(links)))
+    g = np.sqrt(w / C_N) * rng.uniform(-3.0, 30.0, (len(links), d))
+    model.store(links, state, g[:, 0], g[:, 1:])
+    drive = C_N * np.maximum(g[:, 0], 0.0) ** 2 + C_T * np.sum(g[:, 1:] ** 2, axis=1)
+    expected = released_n.copy()
+    expected[links] += 0.5 * (beta_n[links] ** 2 - state**2) * drive
+    untouched = np.setdiff1d(np.arange(n), links)
+    np.testing.assert_array_equal(model.beta[links], state)
+    np.testing.assert_array_equal(model.beta[untouched], beta_n[untouched])
+    np.testing.assert_allclose(model.released, expected, rtol=1e-14, atol=0)
+    assert np.count_nonzero(model.released != released_n) > len(links) // 3  # links released energy

@@ -148,20 +148,16 @@ class Rccm(_Model):
         condition beta_n Y' > w alike); inf for a broken link."""
         return np.divide(self.w, beta_n, out=np.full(np.shape(beta_n), np.inf), where=beta_n > 0)
 
-    def store(self, links, state, valid, g_N, g_T):
-        """Accept the converged state of the links (n, L) where valid (n, L); g_N (n, L),
-        g_T (n, L, d-1): the link-frame jumps (g_n + g_{n+1}) / 2 (m), where the
-        energy of the step is stored (solver/imex.py).
+    def store(self, links, state, g_N, g_T):
+        """Accept the converged state of the links (n,); g_N (n,), g_T (n, d-1): the
+        link-frame jumps (g_n + g_{n+1}) / 2 (m), where the energy of the step is stored
+        (solver/imex.py).
 
         With damage lagged by one step the traction used beta_n, so the drop to beta frees
         the elastic energy 1/2 (beta_n^2 - beta^2)(C_N <g_N>+^2 + C_T |g_T|^2): that is the
         dissipation booked (it equals w (beta_n - beta) while the link follows the envelope,
-        and exceeds it when a link fails within a step)."""
-        changed = valid & (state != self.beta[links])  # the others release nothing
-        idx = links[changed]
-        self.released[idx] += 0.5 * (self.beta[idx] ** 2 - state[changed] ** 2) * self.driving_energy(
-            g_N[changed], g_T[changed])
-        self.beta[idx] = state[changed]
+        and exceeds it when a link fails within a step). Compiled (rccm_kernel.store)."""
+        rccm_kernel.store(links, state, g_N, g_T, float(self.C_N), float(self.C_T), self.beta, self.released)
 
     def stored_energy(self, g_N, g_T):
         """Elastic energy density of every link (J/m^2), at link-frame jumps g_N, g_T."""
@@ -289,15 +285,14 @@ class Threshold(_Rigid):
         """No springs: the whole law is in the shifted contact constraint."""
         return _no_springs(g_T, lost_n)
 
-    def store(self, links, state, valid, g_N, g_T):
-        """Break the links whose mid-step gap g_N (n, L) passed W_eth (the trial ``state``
+    def store(self, links, state, g_N, g_T):
+        """Break the links (n,) whose mid-step gap g_N (n,) passed W_eth (the trial ``state``
         is not used: this law's state follows from the converged gap)."""
-        idx = links[valid]
-        broken = laws.threshold(g_N[valid], self.lost[idx] > 0, self.R_c, self.W_eth)[1]
-        newly = idx[broken & (self.lost[idx] == 0)]
+        broken = laws.threshold(g_N, self.lost[links] > 0, self.R_c, self.W_eth)[1]
+        newly = links[broken & (self.lost[links] == 0)]
         self.released[newly] += self.work[newly]
         self.work[newly] = 0.0
-        self.lost[idx] = broken
+        self.lost[links] = broken
 
     def rigid(self):
         return self.lost == 0
@@ -380,24 +375,22 @@ class LinearSoftening(_Rigid):
     def _psi(self, g_N, g_T):
         return np.maximum(g_N, 0.0) ** 2 + self.a_T * np.sum(g_T**2, axis=-1)
 
-    def store(self, links, state, valid, g_N, g_T):
-        """delta_max from the mid-step jumps g_N (n, L), g_T (n, L, d-1); switch the links
-        past delta_open to their springs; book the released energy (the trial ``state``
-        is not used)."""
-        idx = links[valid]
-        gN, gT = g_N[valid], g_T[valid]
-        old, was = self.delta_max[idx], self.sprung[idx]
-        delta = self._delta(gN, gT)
+    def store(self, links, state, g_N, g_T):
+        """delta_max of the links (n,) from the mid-step jumps g_N (n,), g_T (n, d-1);
+        switch the links past delta_open to their springs; book the released energy (the
+        trial ``state`` is not used)."""
+        old, was = self.delta_max[links], self.sprung[links]
+        delta = self._delta(g_N, g_T)
         new = np.where(delta > OPENING_TOLERANCE * self.delta_c, np.maximum(old, delta), old)
-        now = was | (new > np.broadcast_to(self.delta_open, self.sprung.shape)[idx])
+        now = was | (new > np.broadcast_to(self.delta_open, self.sprung.shape)[links])
         switching = now & ~was
-        psi = self._psi(gN, gT)
+        psi = self._psi(g_N, g_T)
         S_new = self.secant(new)
-        self.released[idx] += np.where(switching, self.work[idx] - 0.5 * S_new * psi,
-                                       0.5 * (self.secant(old) - S_new) * psi * was)
-        self.work[idx[switching]] = 0.0
-        self.delta_max[idx] = new
-        self.sprung[idx] = now
+        self.released[links] += np.where(switching, self.work[links] - 0.5 * S_new * psi,
+                                         0.5 * (self.secant(old) - S_new) * psi * was)
+        self.work[links[switching]] = 0.0
+        self.delta_max[links] = new
+        self.sprung[links] = now
 
     def rigid(self):
         return ~self.sprung

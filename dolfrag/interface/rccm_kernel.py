@@ -1,9 +1,10 @@
-"""The RCCM trial state of a step, compiled: one loop over the links.
+"""The RCCM trial state of a step and its acceptance, compiled: one loop over the links each.
 
 The same arithmetic, operation for operation, as models.threshold_trial_state with
 laws.mohr_coulomb_shear and laws.rccm_damage (the pure numpy reference the tests hold it
-to, bit for bit): those cost ~15 numpy calls a step whatever the number of links, which
-on a rank's few hundred links is most of their time.
+to, bit for bit), and as the released energy of models.Rccm.store: those cost ~20 numpy
+calls a step whatever the number of links, which on a rank's few hundred links is most
+of their time.
 """
 import numpy as np
 from numba import njit
@@ -43,9 +44,29 @@ def trial_state(g_N, g_T, beta_n, r_N, C_N, C_T, w, b, h, mu_i, margin, beta):
         beta[l] = min(max(new, 0.0), 1.0)
 
 
+@njit(cache=True, error_model="numpy")
+def store(links, state, g_N, g_T, C_N, C_T, beta, released):
+    """Accept the damage ``state`` (n,) of the links ``links`` (n,) into beta (per link of
+    the table), adding to ``released`` (J/m^2) the energy the drop frees at the
+    link-frame jumps g_N (n,), g_T (n, d-1) (m): 1/2 (beta_n^2 - beta^2) Y'(g)."""
+    for i in range(len(links)):
+        k = links[i]
+        if state[i] == beta[k]:
+            continue
+        sliding = 0.0
+        for j in range(g_T.shape[1]):
+            sliding += g_T[i, j] ** 2
+        drive = C_N * max(g_N[i], 0.0) ** 2 + C_T * sliding
+        released[k] += 0.5 * (beta[k] ** 2 - state[i] ** 2) * drive
+        beta[k] = state[i]
+
+
 def warm():
-    """Compile the loop into numba's cache (2D and 3D jumps, with and without r_N)."""
+    """Compile the loops into numba's cache (2D and 3D jumps, with and without r_N; the
+    jumps of store as columns of the link-frame jump array, as the star solver passes them)."""
     for m in (1, 2):
         for r_N in (np.zeros(0), np.ones(1)):
             trial_state(np.ones(1), np.ones((1, m)), np.ones(1), r_N, 1.0, 1.0, 0.5, 1.0, 1.0, 0.3, 1e-9,
                         np.empty(1))
+        g = np.ones((1, m + 1))
+        store(np.zeros(1, dtype=np.int64), np.zeros(1), g[:, 0], g[:, 1:], 1.0, 1.0, np.ones(1), np.zeros(1))

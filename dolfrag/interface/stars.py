@@ -158,7 +158,3 @@ class FlatStars:
     @property
     def n_stars(self):
         return len(self.comp_off) - 1
-
-    def per_link(self, values):
-        """A scalar or per-link array (over the link table) as a float array per star link."""
-        return np.ascontiguousarray(np.broadcast_to(values, (self.n_links,))[self.links], dtype=float)

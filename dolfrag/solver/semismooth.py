@@ -128,7 +128,6 @@ class StarNewton:
         self.timer = PhaseTimer()  # the integrator's, once it owns this solver
         d = stars.gdim
         self.layout = StarLayout(stars, links, m, h)
-        self.r = np.zeros((len(links), d))  # contact reactions, link frame, Pa
         self._all_links = np.arange(len(links))
         self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
         self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
@@ -171,7 +170,7 @@ class StarNewton:
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
         # (global, so that 1 and N ranks stop every star alike)
         force = np.abs(f).max(initial=0.0)  # N, and as a traction on the largest link (Pa)
-        mine = np.array([h * force, max(np.abs(self.r).max(initial=0.0), np.abs(per_link[1]).max(initial=0.0),
+        mine = np.array([h * force, max(np.abs(self._r).max(initial=0.0), np.abs(per_link[1]).max(initial=0.0),
                                         force / max(self.jump.links.weight.max(initial=0.0), 1e-300))])
         largest = np.empty(2)
         self.timer.lap("interface")
@@ -187,7 +186,6 @@ class StarNewton:
                                 self._entry_codes, self._entry_cached)
         out[lay.comps] = self._x
         self.reaction[lay.comps] = self._reaction
-        self.r[lay.links] = self._r
         self.iterations = int(self._counters[ITERATIONS])
         self.unconverged = int(self._counters[N_UNCONVERGED])
         self.stalled += int(self._counters[N_STALLED])
@@ -198,14 +196,14 @@ class StarNewton:
         # the state after the step, from the accepted jumps
         gbar, g_mid, before = self._gbar, g_loc + 0.5 * self._slip, state_n[lay.links]  # g_mid: (g_n + g_{n+1}) / 2
         trial = self.model.trial_state(gbar[:, 0], gbar[:, 1:], before, self._r[:, 0])
-        self.model.store(lay.links, trial, np.ones(len(before), dtype=bool), g_mid[:, 0], g_mid[:, 1:])
+        self.model.store(lay.links, trial, g_mid[:, 0], g_mid[:, 1:])
         self._book_contact_work(*per_link[1:3])
-        after = self.model.state_at(self._all_links)
-        changed = after[lay.links] != before
-        if changed.any():  # the stars whose damage changed: their factors are now stale (CHORD)
-            damaged = np.bincount(lay.star_of_link, weights=changed, minlength=lay.n_stars) > 0
-            lay.cached[damaged & (lay.cached == star_kernel.EXACT)] = star_kernel.STALE
-            per_link = self._data_at(after)
+        after = self.model.state_at(lay.links)
+        changed = np.flatnonzero(after != before)  # star links
+        if len(changed):  # the stars whose damage changed: their factors are now stale (CHORD)
+            damaged = lay.star_of_link[changed]
+            lay.cached[damaged[lay.cached[damaged] == star_kernel.EXACT]] = star_kernel.STALE
+            per_link = self._refresh(changed, after)
         renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
@@ -226,19 +224,39 @@ class StarNewton:
                       floor_m=floor_m, floor_c=floor_c)
         return failed
 
+    @property
+    def r(self):
+        """The contact reactions of the last step (n_links, gdim), link frame, Pa."""
+        r = np.zeros((self.layout.n_links, self.stars.gdim))
+        r[self.layout.links] = self._r
+        return r
+
     def _data_at(self, state):
         """Per star link, the kernel's friction mu, cohesion shift and cohesion_T (Pa) and
         the springs' secants k_N, k_T (Pa/m) at the link states ``state`` (of every link).
         They are functions of the states alone, which stay the same from most steps to the
         next: the last call's are returned while they do (measured on wall-bending-clamped:
-        58 us of a 1.1 ms step)."""
+        58 us of a 1.1 ms step), and after a step only its changed links are evaluated
+        again (_refresh)."""
         if self._data is None or not np.array_equal(state, self._data[0]):
-            model, gather = self.model, self.layout.per_link
-            self._data = (state.copy(), (gather(model.friction(state)), gather(model.shift(state)),
-                                         gather(model.shear_cohesion(state)),
-                                         *spring_coefficients(model, np.ascontiguousarray(state[self.layout.links]),
-                                                              self.stars.gdim)))
+            self._data = (state.copy(), self._link_data(state[self.layout.links]))
         return self._data[1]
+
+    def _refresh(self, changed, state):
+        """The kernel's per-link data after the star links ``changed`` took their states in
+        ``state`` (per star link): evaluated on those links alone."""
+        known, data = self._data
+        known[self.layout.links[changed]] = state[changed]
+        for array, values in zip(data, self._link_data(state[changed])):
+            array[changed] = values
+        return data
+
+    def _link_data(self, state):
+        """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, one float array each."""
+        model, n = self.model, len(state)
+        per_link = (np.array(np.broadcast_to(a, (n,)), dtype=float)  # writable: _refresh updates them
+                    for a in (model.friction(state), model.shift(state), model.shear_cohesion(state)))
+        return (*per_link, *spring_coefficients(model, state, self.stars.gdim))
 
     def _book_contact_work(self, shift, cohesion_T):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,

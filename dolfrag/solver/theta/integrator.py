@@ -285,8 +285,7 @@ class Theta:
         if self.contact:
             g = point.g_end
             state = self.model.cohesion(g[:, 0], g[:, 1:], step.state_n, r[:, 0]).state
-            every = np.arange(len(w))[:, None]
-            self.model.store(every, state[:, None], np.ones_like(every, dtype=bool), g[:, :1], g[:, None, 1:])
+            self.model.store(np.arange(len(w)), state, g[:, 0], g[:, 1:])
             # split as the star Newton does: contact and friction dissipate, the cohesive
             # part of a rigid link's constraint is stored in it (after model.store)
             dissipated, stored = reaction_work(r[:, 0], r[:, 1:], dg, step.shift, step.cohesion_T)
