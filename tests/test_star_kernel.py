@@ -13,7 +13,6 @@ from dolfrag.problem import Problem
 from dolfrag.run.driver import integrator
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK
-from dolfrag.solver.semismooth import spring_coefficients
 from dolfrag.solver.star_kernel import FROZEN, REGULARISATION
 
 
@@ -38,7 +37,7 @@ def test_every_models_springs_are_the_secants_the_kernel_reads(d):
     n = 400
     for name, model in _models(n, rng).items():
         state = model.state_at(np.arange(n))
-        k_N, k_T = spring_coefficients(model, state, d)
+        k_N, k_T = model.secants(state)
         g_N, g_T = rng.normal(scale=1e-5, size=n), rng.normal(scale=1e-5, size=(n, d - 1))
         law = model.springs(g_N, g_T, state)
         # the kernel's traction k_N <g_N>+, k_T g_T and tangent diag(k_N [g_N > 0], k_T):
@@ -59,7 +58,7 @@ def test_the_lagged_secants_are_the_laws_traction_on_their_unloading_branch():
     # RCCM below its damage threshold (beta stays beta_n): laws.rccm is the secant
     rccm = all_models["rccm"]
     beta = np.maximum(rccm.beta, 0.05)
-    k_N, k_T = spring_coefficients(rccm, beta, d)
+    k_N, k_T = rccm.secants(beta)
     scale = 0.3 * np.sqrt(rccm.w / beta / (rccm.C_N + rccm.C_T))  # Y' < w / beta
     g_N, g_T = rng.uniform(-1, 1, n) * scale, rng.uniform(-1, 1, (n, d - 1)) * scale[:, None] / np.sqrt(2)
     r_N, r_T, *_, beta_law = laws.rccm(g_N, g_T, beta, rccm.C_N, rccm.C_T, rccm.w)
@@ -69,7 +68,7 @@ def test_the_lagged_secants_are_the_laws_traction_on_their_unloading_branch():
     # linear softening, sprung, inside its reached opening (unloading to the origin)
     soft = all_models["linear_softening"]
     delta_max = rng.uniform(0.1, 0.9, n) * soft.delta_c
-    k_N, k_T = spring_coefficients(soft, delta_max, d)
+    k_N, k_T = soft.secants(delta_max)
     g_N, g_T = rng.uniform(-0.5, 0.5, n) * delta_max, rng.uniform(-0.4, 0.4, (n, d - 1)) * delta_max[:, None]
     r_N, r_T, *_ = laws.linear_softening(g_N, g_T, delta_max, soft.sigma_c, soft.G_c)
     assert np.allclose(r_N, k_N * np.maximum(g_N, 0), rtol=1e-12, atol=0)

@@ -57,9 +57,20 @@ class Elastic:
 
 
 class _Model:
-    """What every breakable model offers the star solvers: ``springs`` (the traction of a
-    step, with the state lagged, and its tangent), ``trial_state`` (the state the law gives
-    at the step's jumps: the one ``store`` accepts), and both together in ``cohesion``."""
+    """What every breakable model offers the star solvers: ``secants`` (the springs of a
+    step, with the state lagged), ``springs`` (their traction and tangent), ``trial_state``
+    (the state the law gives at the step's jumps: the one ``store`` accepts), and the last
+    two together in ``cohesion``."""
+
+    def springs(self, g_N, g_T, state_n):
+        """Traction of the step (Pa) at the link-frame jumps g_N (n,), g_T (n, d-1) (m),
+        the state lagged at state_n: k_N <g_N>+ and k_T g_T with the ``secants`` (k_N, k_T)
+        of state_n, their tangent, and the state state_n."""
+        k_N, k_T = self.secants(state_n)
+        m = g_T.shape[1]
+        zeros = np.zeros((len(k_N), m))
+        return Cohesion(k_N * np.maximum(g_N, 0.0), k_T[:, None] * g_T, k_N * (g_N > 0),
+                        k_T[:, None, None] * np.eye(m), zeros, zeros, state_n)
 
     def trial_state(self, g_N, g_T, state_n, r_N=None):
         """The state after the step: unchanged by default (the rigid laws' state follows from
@@ -108,9 +119,9 @@ class Rccm(_Model):
     def absorb(self, work):
         """Cohesive work of the constraint: none (no shift)."""
 
-    def springs(self, g_N, g_T, beta_n):
-        """Traction of the step, with the damage lagged by one step: r = beta_n^2 C g
-        (normal part in opening only) and its tangent beta_n^2 C; the state is beta_n.
+    def secants(self, beta_n):
+        """The springs (k_N, k_T) = beta_n^2 (C_N, C_T) (Pa/m) of a step, the damage lagged
+        by one step: r = beta_n^2 C g (normal part in opening only).
 
         Why lagged: with beta implicit, a star whose softening stiffness exceeds its mass
         term (h^2/4 w |dr/dg| > m, always the case at C = 10-100 E/h) has several solutions,
@@ -118,11 +129,7 @@ class Rccm(_Model):
         in the same run (measured). Lagged, each star problem is monotone (unique), and the
         energy the drop beta_n -> beta frees is booked exactly (store)."""
         secant = beta_n**2
-        m = g_T.shape[1]
-        zeros = np.zeros((len(secant), m))
-        return Cohesion(secant * self.C_N * np.maximum(g_N, 0.0), secant[:, None] * self.C_T * g_T,
-                        secant * self.C_N * (g_N > 0), secant[:, None, None] * self.C_T * np.eye(m),
-                        zeros, zeros, beta_n)
+        return secant * self.C_N, secant * self.C_T
 
     def trial_state(self, g_N, g_T, beta_n, r_N=None):
         """The damage the law gives at these jumps (the state after the step); r_N (Pa,
@@ -281,9 +288,9 @@ class Threshold(_Rigid):
     def shear_cohesion(self, lost):
         return np.zeros_like(lost)
 
-    def springs(self, g_N, g_T, lost_n):
+    def secants(self, lost_n):
         """No springs: the whole law is in the shifted contact constraint."""
-        return _no_springs(g_T, lost_n)
+        return np.zeros(len(lost_n)), np.zeros(len(lost_n))
 
     def store(self, links, state, g_N, g_T):
         """Break the links (n,) whose mid-step gap g_N (n,) passed W_eth (the trial ``state``
@@ -359,14 +366,11 @@ class LinearSoftening(_Rigid):
         inside = (state > 0) & (state < self.delta_c)
         return np.where(inside, self.sigma_c * (1 / np.where(inside, state, 1.0) - 1 / self.delta_c), 0.0)
 
-    def springs(self, g_N, g_T, state_n):
-        """Secant springs at the lagged state_n (none on rigid links: the constraint
-        carries them)."""
+    def secants(self, state_n):
+        """Secant springs (S, a_T S) (Pa/m) at the lagged state_n (none on rigid links:
+        the constraint carries them)."""
         S = self.secant(state_n)
-        m = g_T.shape[1]
-        zeros = np.zeros((len(S), m))
-        return Cohesion(S * np.maximum(g_N, 0.0), (self.a_T * S)[:, None] * g_T, S * (g_N > 0),
-                        (self.a_T * S)[:, None, None] * np.eye(m), zeros, zeros, state_n)
+        return S, self.a_T * S
 
     def _delta(self, g_N, g_T):
         shear = self.beta_ratio**2 / self.kappa**2
@@ -404,13 +408,6 @@ class LinearSoftening(_Rigid):
     def damage(self):
         """delta_max / delta_c, clipped to 1: 0 intact, 1 broken."""
         return np.minimum(self.delta_max / self.delta_c, 1.0)
-
-
-def _no_springs(g_T, state_n):
-    n, m = g_T.shape
-    zeros = np.zeros(n)
-    return Cohesion(zeros, np.zeros((n, m)), zeros, np.zeros((n, m, m)), np.zeros((n, m)),
-                    np.zeros((n, m)), state_n)
 
 
 class Law(NamedTuple):

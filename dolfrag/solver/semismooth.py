@@ -20,7 +20,7 @@ opening and contact (period-20 cycles, measured) or found one of several solutio
 whichever round-off chose. Lagged, every star problem is monotone: Newton is exact on its
 piecewise-linear pieces and stops in 4-10 iterations. Friction uses the law's coefficient
 at the start of the step (mu (1 - beta_n) for RCCM), so its derivative is not needed.
-Lagged, every model's springs are secants fixed for the step (spring_coefficients).
+Lagged, every model's springs are secants fixed for the step (model.secants).
 
 A step starts from the affine prediction of each star's last piece (solver/active_set.py):
 most stars are solved by it, checked by one residual evaluation, and only the stars whose
@@ -58,17 +58,6 @@ def step_stiffness(links, m, h, gdim):
     augmentation of the contact projections, and bounds the springs a star can take."""
     m_pair = 0.5 * (m[gdim * links.dof_A] + m[gdim * links.dof_B])
     return m_pair / (h * h * links.weight)
-
-
-def spring_coefficients(model, state, gdim):
-    """The secants (k_N, k_T) (Pa/m, per link) of a model's lagged springs at the link
-    states ``state``: its traction is k_N <g_N>+ and k_T g_T (tests/test_star_kernel.py
-    checks every model's ``springs`` against that form), read off at a unit opening."""
-    n = len(state)
-    law = model.springs(np.ones(n), np.zeros((n, gdim - 1)), state)
-    k_N = np.broadcast_to(law.dr_N_dg_N, (n,))
-    k_T = np.broadcast_to(law.dr_T_dg_T, (n, gdim - 1, gdim - 1))[:, 0, 0]
-    return np.array(k_N, dtype=float), np.array(k_T, dtype=float)  # writable copies: the kernel's cached types
 
 
 class StarLayout(FlatStars):
@@ -254,9 +243,8 @@ class StarNewton:
     def _link_data(self, state):
         """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, one float array each."""
         model, n = self.model, len(state)
-        per_link = (np.array(np.broadcast_to(a, (n,)), dtype=float)  # writable: _refresh updates them
-                    for a in (model.friction(state), model.shift(state), model.shear_cohesion(state)))
-        return (*per_link, *spring_coefficients(model, state, self.stars.gdim))
+        values = (model.friction(state), model.shift(state), model.shear_cohesion(state), *model.secants(state))
+        return tuple(np.array(np.broadcast_to(a, (n,)), dtype=float) for a in values)  # writable: _refresh updates them
 
     def _book_contact_work(self, shift, cohesion_T):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,

@@ -13,7 +13,7 @@ next step's prediction (solver/active_set.py).
 
 The springs of every model are secants lagged by one step (interface/models.py): a link's
 traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the step
-(semismooth.spring_coefficients). ``warm()`` compiles the kernels into numba's cache
+(model.secants). ``warm()`` compiles the kernels into numba's cache
 (``make install`` calls it).
 """
 
