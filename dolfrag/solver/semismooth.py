@@ -150,9 +150,8 @@ class StarNewton:
         """
         lay, h = self.layout, self.h
         g_loc, dg_loc = self._g_loc, self._dg_loc  # link frame: the jumps of u_n and h v_{n-1/2}
-        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, 1.0, g_loc)
-        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, v, float(h),
-                               dg_loc)
+        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, v, float(h),
+                               g_loc, dg_loc)
         state_n = self.model.state_at(self._all_links)
         per_link = self._data_at(state_n)
         # A star far from the action (a millionth of the largest force or traction of this

@@ -640,20 +640,24 @@ def _note_factored(L, k_N, k_T, mu, factored):
 # ---------------------------------------------------------------- the loop over stars
 
 @njit(cache=True, error_model="numpy")
-def star_jumps(comps, comp_off, link_off, slot_A, slot_B, frame, u, scale, out):
-    """out (L_total, d) = scale frame (u_B - u_A) per star link: the jump of the flat field
-    u (over local components) across each link of the stars, in its link frame (normal
-    first); comps, comp_off, link_off, slot_A, slot_B as solve_stars."""
+def star_jumps(comps, comp_off, link_off, slot_A, slot_B, frame, u, v, h, g_out, dg_out):
+    """g_out (L_total, d) = frame (u_B - u_A) and dg_out = h frame (v_B - v_A) per star
+    link: the jumps of the flat fields u (m) and h v (m/s, h s) (over local components)
+    across each link of the stars, in its link frame (normal first); comps, comp_off,
+    link_off, slot_A, slot_B as solve_stars."""
     d = frame.shape[1]
     for s in range(len(comp_off) - 1):
         p0 = comp_off[s]
         for l in range(link_off[s], link_off[s + 1]):
             a, b = p0 + slot_A[l] * d, p0 + slot_B[l] * d
             for i in range(d):
-                acc = 0.0
+                g, dg = 0.0, 0.0
                 for j in range(d):
-                    acc += frame[l, i, j] * (u[comps[b + j]] - u[comps[a + j]])
-                out[l, i] = scale * acc
+                    A, B = comps[a + j], comps[b + j]
+                    g += frame[l, i, j] * (u[B] - u[A])
+                    dg += frame[l, i, j] * (v[B] - v[A])
+                g_out[l, i] = g
+                dg_out[l, i] = h * dg
 
 
 @njit(cache=True, error_model="numpy")
@@ -915,3 +919,5 @@ def warm():
                     status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64),
                     entry_codes=np.zeros(L, np.int8), entry_cached=np.zeros(1, np.int8))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
+        star_jumps(np.arange(q), args["comp_off"], args["link_off"], args["slot_A"], args["slot_B"], frame, np.zeros(q),
+                   np.zeros(q), 1.0, np.zeros((L, d)), np.zeros((L, d)))
