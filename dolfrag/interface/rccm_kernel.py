@@ -11,6 +11,15 @@ from numba import njit
 
 
 @njit(cache=True, error_model="numpy")
+def _opening_sliding(g_N, g_T, l):
+    """<g_N>+ and |g_T|^2 of link l (m, m^2): what the driving energy Y' is made of."""
+    sliding = 0.0
+    for k in range(g_T.shape[1]):
+        sliding += g_T[l, k] ** 2
+    return max(g_N[l], 0.0), sliding
+
+
+@njit(cache=True, error_model="numpy")
 def trial_state(g_N, g_T, beta_n, r_N, C_N, C_T, w, b, h, mu_i, margin, beta):
     """beta[l]: the damage RCCM gives at the link-frame jumps g_N (n,) and g_T (n, d-1) (m)
     from beta_n (n,), with the shear that drives it reduced by mu_i r_N (r_N (n,) Pa, or
@@ -20,10 +29,7 @@ def trial_state(g_N, g_T, beta_n, r_N, C_N, C_T, w, b, h, mu_i, margin, beta):
     for l in range(len(beta_n)):
         beta_l = beta_n[l]
         beta[l] = beta_l
-        opening = max(g_N[l], 0.0)
-        sliding = 0.0
-        for k in range(g_T.shape[1]):
-            sliding += g_T[l, k] ** 2
+        opening, sliding = _opening_sliding(g_N, g_T, l)
         threshold = w / beta_l if beta_l > 0 else np.inf
         if not C_N * opening**2 + C_T * sliding > (1 - margin) * threshold:
             continue
@@ -53,10 +59,8 @@ def store(links, state, g_N, g_T, C_N, C_T, beta, released):
         k = links[i]
         if state[i] == beta[k]:
             continue
-        sliding = 0.0
-        for j in range(g_T.shape[1]):
-            sliding += g_T[i, j] ** 2
-        drive = C_N * max(g_N[i], 0.0) ** 2 + C_T * sliding
+        opening, sliding = _opening_sliding(g_N, g_T, i)
+        drive = C_N * opening**2 + C_T * sliding
         released[k] += 0.5 * (beta[k] ** 2 - state[i] ** 2) * drive
         beta[k] = state[i]
 
