@@ -520,3 +520,26 @@ def test_compiled_rccm_store_books_the_released_energy(d):
     np.testing.assert_array_equal(model.beta[untouched], beta_n[untouched])
     np.testing.assert_allclose(model.released, expected, rtol=1e-14, atol=0)
     assert np.count_nonzero(model.released != released_n) > len(links) // 3  # links released energy
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("mu_i", [0.0, 0.5])
+def test_compiled_rccm_advance_is_trial_state_then_store(d, mu_i):
+    """Rccm.advance (rccm_kernel.advance, one pass) against the generic step of every model,
+    _Model.advance: trial_state, then store, then the links whose state changed. The same
+    operations, so beta, the released energy and the changed links are equal bit for bit."""
+    n, C_N, C_T, w = 3000, 1e12, 4e11, 0.16
+    rng = np.random.default_rng(13)
+    compiled, generic = (models.Rccm(n, C_N, C_T, w, mu=0.3, mu_i=mu_i) for _ in range(2))
+    beta_n = np.select([rng.random(n) < 0.2, rng.random(n) < 0.3], [0.0, 1.0], rng.uniform(0.0, 1.0, n))
+    for model in (compiled, generic):
+        model.beta[:], model.released[:] = beta_n, 0.25
+    links = rng.permutation(n)[: 2 * n // 3]
+    u0 = np.sqrt(w / C_N)
+    gbar, g_mid = (u0 * rng.uniform(-3.0, 30.0, (len(links), d)) for _ in range(2))
+    r_N = np.where(gbar[:, 0] < 0, rng.uniform(0.0, 1e6, len(links)), 0.0)
+    changed = compiled.advance(links, gbar, g_mid, r_N)
+    np.testing.assert_array_equal(changed, models._Model.advance(generic, links, gbar, g_mid, r_N))
+    np.testing.assert_array_equal(compiled.beta, generic.beta)
+    np.testing.assert_array_equal(compiled.released, generic.released)
+    assert len(links) // 10 < len(changed) < len(links) - len(links) // 10  # links that damage and links that do not

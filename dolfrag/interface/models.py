@@ -81,6 +81,15 @@ class _Model:
         """``springs`` with the trial state in place of state_n."""
         return self.springs(g_N, g_T, state_n)._replace(state=self.trial_state(g_N, g_T, state_n, r_N))
 
+    def advance(self, links, gbar, g_mid, r_N):
+        """Take a step on the links ``links`` (n,): the trial state at the springs' jumps
+        gbar (n, d), with the contact pressure r_N (n,) (Pa), accepted by ``store`` with the
+        jumps g_mid (n, d) (link frame, m). Returns the positions (into links) whose state
+        changed."""
+        before = self.state_at(links)
+        self.store(links, self.trial_state(gbar[:, 0], gbar[:, 1:], before, r_N), g_mid[:, 0], g_mid[:, 1:])
+        return np.flatnonzero(self.state_at(links) != before)
+
 
 class Rccm(_Model):
     """RCCM damage (Raous-Cangemi-Cocu / Monerie) with unilateral contact and Coulomb
@@ -166,6 +175,15 @@ class Rccm(_Model):
         and exceeds it when a link fails within a step). Compiled (rccm_kernel.store)."""
         rccm_kernel.store(links, state, g_N, g_T, float(self.C_N), float(self.C_T), self.beta, self.released)
 
+    def advance(self, links, gbar, g_mid, r_N):
+        """_Model.advance in one compiled pass (rccm_kernel.advance: trial_state and store's
+        arithmetic)."""
+        changed = np.empty(len(links), dtype=np.int64)
+        count = rccm_kernel.advance(links, gbar, g_mid, r_N, float(self.C_N), float(self.C_T), float(self.w),
+                                    float(self.b), float(self.h or 0.0), float(self.mu_i), THRESHOLD_MARGIN,
+                                    self.beta, self.released, changed)
+        return changed[:count]
+
     def stored_energy(self, g_N, g_T):
         """Elastic energy density of every link (J/m^2), at link-frame jumps g_N, g_T."""
         return laws.rccm_energy(g_N, g_T, self.beta, self.C_N, self.C_T)
@@ -210,6 +228,8 @@ class RccmDecoupled(Rccm):
 
     def trial_state(self, g_N, g_T, beta_n, r_N=None):
         return threshold_trial_state(self, g_N, g_T, beta_n, r_N)
+
+    advance = _Model.advance  # Rccm's compiled one is Rccm's envelope
 
     def envelope(self, g_N, g_T, beta_n):
         return laws.rccm_decoupled(g_N, g_T, beta_n, self.C_N, self.C_T, self.sigma_c, self.G_c)[-1]

@@ -63,21 +63,50 @@ def reaction_work(r_N, r_T, dg, shift, cohesion_T):
     the cone against dg_T (tests/test_reaction_work.py).
 
     Compiled, one loop over the links: in numpy these were a dozen calls a step."""
-    n, d = dg.shape
+    n = dg.shape[0]
     dissipated, stored = np.empty(n), np.empty(n)
     for l in range(n):
-        slip, tangential = 0.0, 0.0
-        for i in range(1, d):
-            slip += dg[l, i] ** 2
-            tangential += r_T[l, i - 1] * dg[l, i]
-        stored[l] = shift[l] * dg[l, 0] + cohesion_T[l] * np.sqrt(slip)
-        dissipated[l] = -(r_N[l] * dg[l, 0] + tangential) - stored[l]
+        dissipated[l], stored[l] = _link_work(r_N[l], r_T[l], dg[l], shift[l], cohesion_T[l])
     return dissipated, stored
 
 
+@njit(cache=True, error_model="numpy")
+def _link_work(r_N, r_T, dg, shift, cohesion_T):
+    """(dissipated, stored) of one link (J/m^2), as reaction_work: r_T (d-1,), dg (d,)."""
+    slip, tangential = 0.0, 0.0
+    for i in range(1, len(dg)):
+        slip += dg[i] ** 2
+        tangential += r_T[i - 1] * dg[i]
+    stored = shift * dg[0] + cohesion_T * np.sqrt(slip)
+    return -(r_N * dg[0] + tangential) - stored, stored
+
+
+@njit(cache=True, error_model="numpy")
+def book_reaction_work(r, slip, slip_before, shift, cohesion_T, weight, links, absorbed):
+    """The work of a step's contact reactions r (n, d) (Pa, link frame) over the jump
+    increments of this step and the last, slip + slip_before (n, d) (m: h B v_{n+1/2} and
+    h B v_{n-1/2}), taken as a midpoint: -r . (g_{n+1} - g_{n-1}) / 2 per link, split by
+    reaction_work. Writes absorbed[links] = the stored part (J/m^2), copies slip into
+    slip_before for the next step, and returns the dissipated part summed with the links'
+    weights (J, J/m in 2D)."""
+    n, d = r.shape
+    dg = np.empty(d)
+    total = 0.0
+    for l in range(n):
+        for i in range(d):
+            dg[i] = slip[l, i] + slip_before[l, i]
+            slip_before[l, i] = slip[l, i]
+        dissipated, stored = _link_work(r[l, 0], r[l, 1:], dg, shift[l], cohesion_T[l])
+        total += 0.5 * weight[l] * dissipated
+        absorbed[links[l]] = 0.5 * stored
+    return total
+
+
 def warm():
-    """Compile reaction_work into numba's cache, for the reactions as the solvers pass them
+    """Compile reaction_work and book_reaction_work into numba's cache, for the reactions as the solvers pass them
     (columns of the (n, d) link-frame array), 2D and 3D."""
     for d in (2, 3):
         r, dg = np.zeros((1, d)), np.zeros((1, d))
         reaction_work(r[:, 0], r[:, 1:], dg, np.zeros(1), np.zeros(1))
+        book_reaction_work(r, dg, dg.copy(), np.zeros(1), np.zeros(1), np.ones(1), np.zeros(1, dtype=np.int64),
+                           np.zeros(1))

@@ -42,7 +42,7 @@ from mpi4py import MPI
 
 from dolfrag.interface.stars import FlatStars
 from dolfrag.solver import star_kernel, star_replay
-from dolfrag.solver.energy import reaction_work
+from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
 from dolfrag.solver.star_kernel import CYCLE, GIVE_UP, REGULARISATION, STALL  # noqa: F401
@@ -118,6 +118,7 @@ class StarNewton:
         d = stars.gdim
         self.layout = StarLayout(stars, links, m, h)
         self._all_links = np.arange(len(links))
+        self._largest_weight = max(links.weight.max(initial=0.0), 1e-300)  # m or m^2: a force as a traction
         self.reaction = np.zeros_like(m)  # N: on the prescribed components of the stars
         self.contact_dissipated = 0.0  # J (J/m in 2D), owned links
         self.iterations = 0
@@ -126,7 +127,7 @@ class StarNewton:
         self.residual = 0.0  # largest final scaled residual of the step's stars
         n_comps, n_links = len(self.layout.comps), len(self.layout.links)
         # the kernel's outputs, reused every step
-        self._x, self._reaction = np.zeros(n_comps), np.zeros(n_comps)
+        self._x, self._reaction, self._rhs, self._x_in = (np.zeros(n_comps) for _ in range(4))
         self._r, self._gbar, self._slip, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
         self._slip_before = np.zeros((n_links, d))  # the last step's g_n - g_{n-1} (none before the first)
         self._absorbed = np.zeros(len(links))  # the cohesion's work of a step per link, J/m^2
@@ -150,8 +151,9 @@ class StarNewton:
         """
         lay, h = self.layout, self.h
         g_loc, dg_loc = self._g_loc, self._dg_loc  # link frame: the jumps of u_n and h v_{n-1/2}
-        star_kernel.star_jumps(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, v, float(h),
-                               g_loc, dg_loc)
+        rhs, x_in = self._rhs, self._x_in  # h f and the prescribed increments, per star component
+        star_kernel.gather_stars(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, v, f, out,
+                                 float(h), g_loc, dg_loc, rhs, x_in)
         state_n = self.model.state_at(self._all_links)
         per_link = self._data_at(state_n)
         # A star far from the action (a millionth of the largest force or traction of this
@@ -159,13 +161,12 @@ class StarNewton:
         # (global, so that 1 and N ranks stop every star alike)
         force = np.abs(f).max(initial=0.0)  # N, and as a traction on the largest link (Pa)
         mine = np.array([h * force, max(np.abs(self._r).max(initial=0.0), np.abs(per_link[1]).max(initial=0.0),
-                                        force / max(self.jump.links.weight.max(initial=0.0), 1e-300))])
+                                        force / self._largest_weight)])
         largest = np.empty(2)
         self.timer.lap("interface")
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
-        rhs, x_in = h * f[lay.comps], out[lay.comps]  # x_in: the prescribed increments (a copy)
         self._counters[:] = 0
         star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                 float(h), float(self.rtol), int(self.max_iterations), bool(self.predict),
@@ -181,17 +182,13 @@ class StarNewton:
         self.residual = self.star_residual.max(initial=0.0)
         if self.unconverged:
             self.failed = self._failed_stars(rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c)
-        # the state after the step, from the accepted jumps
-        gbar, g_mid, before = self._gbar, g_loc + 0.5 * self._slip, state_n[lay.links]  # g_mid: (g_n + g_{n+1}) / 2
-        trial = self.model.trial_state(gbar[:, 0], gbar[:, 1:], before, self._r[:, 0])
-        self.model.store(lay.links, trial, g_mid[:, 0], g_mid[:, 1:])
+        # the state after the step, from the accepted jumps; g_mid = (g_n + g_{n+1}) / 2
+        changed = self.model.advance(lay.links, self._gbar, g_loc + 0.5 * self._slip, self._r[:, 0])  # star links
         self._book_contact_work(*per_link[1:3])
-        after = self.model.state_at(lay.links)
-        changed = np.flatnonzero(after != before)  # star links
         if len(changed):  # the stars whose damage changed: their factors are now stale (CHORD)
             damaged = lay.star_of_link[changed]
             lay.cached[damaged[lay.cached[damaged] == star_kernel.EXACT]] = star_kernel.STALE
-            per_link = self._refresh(changed, after)
+            per_link = self._refresh(changed)
         renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
@@ -230,20 +227,25 @@ class StarNewton:
             self._data = (state.copy(), self._link_data(state[self.layout.links]))
         return self._data[1]
 
-    def _refresh(self, changed, state):
-        """The kernel's per-link data after the star links ``changed`` took their states in
-        ``state`` (per star link): evaluated on those links alone."""
+    def _refresh(self, changed):
+        """The kernel's per-link data after the star links ``changed`` took new states:
+        evaluated on those links alone."""
         known, data = self._data
-        known[self.layout.links[changed]] = state[changed]
-        for array, values in zip(data, self._link_data(state[changed])):
+        links = self.layout.links[changed]
+        state = known[links] = self.model.state_at(links)
+        for array, values in zip(data, self._link_values(state)):
             array[changed] = values
         return data
 
     def _link_data(self, state):
         """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, one float array each."""
-        model, n = self.model, len(state)
-        values = (model.friction(state), model.shift(state), model.shear_cohesion(state), *model.secants(state))
-        return tuple(np.array(np.broadcast_to(a, (n,)), dtype=float) for a in values)  # writable: _refresh updates them
+        n = len(state)
+        return tuple(np.array(np.broadcast_to(a, (n,)), dtype=float) for a in self._link_values(state))  # writable
+
+    def _link_values(self, state):
+        """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, as the model gives them."""
+        model = self.model
+        return model.friction(state), model.shift(state), model.shear_cohesion(state), *model.secants(state)
 
     def _book_contact_work(self, shift, cohesion_T):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
@@ -253,12 +255,10 @@ class StarNewton:
         cohesion's work is stored in the rigid links of the model (model.absorb), the rest
         is dissipated by contact and friction. The stars hold every link of the rank once."""
         lay = self.layout
-        dg = self._slip + self._slip_before
-        dissipated, stored = reaction_work(self._r[:, 0], self._r[:, 1:], dg, shift, cohesion_T)
-        self.contact_dissipated += 0.5 * lay.weight @ dissipated
-        self._absorbed[lay.links] = 0.5 * stored  # the star links are every link once: all overwritten
+        # the star links are every link once: _absorbed is overwritten whole
+        self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, shift, cohesion_T,
+                                                      lay.weight, lay.links, self._absorbed)
         self.model.absorb(self._absorbed)
-        self._slip_before[:] = self._slip
 
 
 class ConvergenceError(RuntimeError):

@@ -640,22 +640,30 @@ def _note_factored(L, k_N, k_T, mu, factored):
 # ---------------------------------------------------------------- the loop over stars
 
 @njit(cache=True, error_model="numpy")
-def star_jumps(comps, comp_off, link_off, slot_A, slot_B, frame, u, v, h, g_out, dg_out):
-    """g_out (L_total, d) = frame (u_B - u_A) and dg_out = h frame (v_B - v_A) per star
-    link: the jumps of the flat fields u (m) and h v (m/s, h s) (over local components)
-    across each link of the stars, in its link frame (normal first); comps, comp_off,
-    link_off, slot_A, slot_B as solve_stars."""
+def gather_stars(comps, comp_off, link_off, slot_A, slot_B, frame, u, v, f, prescribed, h, g_out, dg_out, rhs_out,
+                 x_out):
+    """What solve_stars reads of the flat fields (over local components): per star link,
+    g_out (L_total, d) = frame (u_B - u_A) (m) and dg_out = h frame (v_B - v_A) (m), the
+    jumps of u and h v in its link frame (normal first); per star component (comps),
+    rhs_out = h f (N s) and x_out = prescribed (m/s: the prescribed increments). comps,
+    comp_off, link_off, slot_A, slot_B as solve_stars; h (s)."""
     d = frame.shape[1]
+    for i in range(len(comps)):
+        rhs_out[i] = h * f[comps[i]]
+        x_out[i] = prescribed[comps[i]]
+    du, dv = np.empty(d), np.empty(d)
     for s in range(len(comp_off) - 1):
         p0 = comp_off[s]
         for l in range(link_off[s], link_off[s + 1]):
             a, b = p0 + slot_A[l] * d, p0 + slot_B[l] * d
+            for j in range(d):  # gathered once, not once per frame row
+                A, B = comps[a + j], comps[b + j]
+                du[j], dv[j] = u[B] - u[A], v[B] - v[A]
             for i in range(d):
                 g, dg = 0.0, 0.0
                 for j in range(d):
-                    A, B = comps[a + j], comps[b + j]
-                    g += frame[l, i, j] * (u[B] - u[A])
-                    dg += frame[l, i, j] * (v[B] - v[A])
+                    g += frame[l, i, j] * du[j]
+                    dg += frame[l, i, j] * dv[j]
                 g_out[l, i] = g
                 dg_out[l, i] = h * dg
 
@@ -919,5 +927,5 @@ def warm():
                     status=np.zeros(1, np.int8), residual=np.zeros(1), counters=np.zeros(4, np.int64),
                     entry_codes=np.zeros(L, np.int8), entry_cached=np.zeros(1, np.int8))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
-        star_jumps(np.arange(q), args["comp_off"], args["link_off"], args["slot_A"], args["slot_B"], frame, np.zeros(q),
-                   np.zeros(q), 1.0, np.zeros((L, d)), np.zeros((L, d)))
+        gather_stars(np.arange(q), args["comp_off"], args["link_off"], args["slot_A"], args["slot_B"], frame,
+                     *(np.zeros(q) for _ in range(4)), 1.0, np.zeros((L, d)), np.zeros((L, d)), np.zeros(q), np.zeros(q))
