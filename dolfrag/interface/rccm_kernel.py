@@ -10,7 +10,10 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
+# The per-link helpers are inlined into the loops (numba's inline="always"): called, each
+# call with array arguments cost about what the link's arithmetic does (measured on 1,708
+# links: advance 21.8 -> 11.9 us, the same results bit for bit).
+@njit(cache=True, error_model="numpy", inline="always")
 def _opening_sliding(g_N, g_T):
     """<g_N>+ and |g_T|^2 of one link (m, m^2; g_T (d-1,)): what the driving energy Y' is made of."""
     sliding = 0.0
@@ -19,7 +22,7 @@ def _opening_sliding(g_N, g_T):
     return max(g_N, 0.0), sliding
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _damage(g_N, g_T, beta_n, r_N, shear, C_N, C_T, w, b, h, mu_i, margin):
     """The damage of one link (trial_state's, for its g_N, g_T (d-1,), beta_n, r_N; shear:
     whether mu_i r_N reduces the shear)."""
@@ -44,7 +47,7 @@ def _damage(g_N, g_T, beta_n, r_N, shear, C_N, C_T, w, b, h, mu_i, margin):
     return min(max(new, 0.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _release(beta_n, beta, g_N, g_T, C_N, C_T):
     """The energy (J/m^2) a link's drop beta_n -> beta frees at the jumps g_N, g_T (d-1,):
     1/2 (beta_n^2 - beta^2) Y'(g)."""

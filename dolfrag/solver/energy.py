@@ -70,7 +70,7 @@ def reaction_work(r_N, r_T, dg, shift, cohesion_T):
     return dissipated, stored
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")  # called per link: inlined, see rccm_kernel
 def _link_work(r_N, r_T, dg, shift, cohesion_T):
     """(dissipated, stored) of one link (J/m^2), as reaction_work: r_T (d-1,), dg (d,)."""
     slip, tangential = 0.0, 0.0
