@@ -195,9 +195,11 @@ class Rebars:
         self.plastic_work = self.rupture_work = 0.0
         self.peak_force = self.force_max = 0.0
         self._own = slice(0, space.n_owned_dofs * d)
-        # the explicit scheme's work booking (stored_energy): owned rows at the last commit
+        # the explicit scheme's work booking (stored_energy): owned rows at the last commit,
+        # kept on the owned components the bars touch (the forces are zero elsewhere)
         self._work = 0.0
         self._u_last, self._f_last = np.zeros(self._own.stop), np.zeros(self._own.stop)
+        self._bar = np.unique(self.comps[self.comps < self._own.stop])
 
     @property
     def count(self):
@@ -293,23 +295,17 @@ class Rebars:
                       f)
         if commit:
             self.accept(state)
-            own = self._own
-            self._work += 0.5 * (self._f_last - f[own]) @ (u[own] - self._u_last)  # internal: -f
-            self._u_last, self._f_last = u[own].copy(), -f[own]
+            self._work += _book_work(self._bar, f, u, self._f_last, self._u_last)
         return f, state
 
     def accept(self, state):
         """Make ``state`` (the end of a step) the accepted one: plastic strain, plastic
         work L N d(eps_p) of the counted segments, largest forces; the segments whose strain
         reached eps_u rupture, releasing their elastic energy there."""
-        self.plastic_work += float(np.sum((self.L * state.N * (state.eps_p - self.eps_p))[self.counted]))
-        self.eps_p = state.eps_p
-        breaking = (state.eps >= self.eps_u) & ~self.ruptured
-        if breaking.any():
-            released = 0.5 * self.L * state.N**2 / (self.E_s * self.area)
-            self.rupture_work += float(np.sum(released[breaking & self.counted]))
-            self.ruptured = self.ruptured | breaking
-        self.force_max = state.N.max(initial=0.0)
+        plastic, rupture, self.force_max = _accept(self.L, self.area, float(self.E_s), float(self.eps_u), self.counted,
+                                                   state.eps, state.N, state.eps_p, self.eps_p, self.ruptured)
+        self.plastic_work += plastic
+        self.rupture_work += rupture
         self.peak_force = max(self.peak_force, self.force_max)
 
     def work(self, step, du):
@@ -413,11 +409,45 @@ def _cable_forces(comps, weights, chord0, L, area, E_s, f_y, eps_p, ruptured, u,
                 f[comps[j, v * d + i]] -= weights[j, v] * N[j] * n_hat[j, i]
 
 
+@njit(cache=True, error_model="numpy")
+def _accept(L, area, E_s, eps_u, counted, eps, N, eps_p_new, eps_p, ruptured):
+    """Rebars.accept segment by segment: eps_p (n,) takes eps_p_new, and the segments whose
+    strain eps reached eps_u rupture (ruptured, in place). Returns the plastic work
+    L N d(eps_p) and the released elastic energy 1/2 L N^2 / (E_s A) of the rupturing
+    segments, both over the counted ones (J, J/m in 2D), and the largest N (N, 0 if none)."""
+    plastic, rupture, largest = 0.0, 0.0, 0.0
+    for j in range(len(L)):
+        if counted[j]:
+            plastic += L[j] * N[j] * (eps_p_new[j] - eps_p[j])
+        eps_p[j] = eps_p_new[j]
+        if eps[j] >= eps_u and not ruptured[j]:
+            if counted[j]:
+                rupture += 0.5 * L[j] * N[j] ** 2 / (E_s * area[j])
+            ruptured[j] = True
+        largest = max(largest, N[j])
+    return plastic, rupture, largest
+
+
+@njit(cache=True, error_model="numpy")
+def _book_work(bar, f, u, f_last, u_last):
+    """The work of the bars' internal forces -f (N) over the step from u_last to u (m),
+    trapezoidal, 1/2 (f_last - f).(u - u_last), on the components ``bar``; f_last, u_last
+    then take -f and u there. Returns the work (J, J/m in 2D)."""
+    work = 0.0
+    for c in bar:
+        work += 0.5 * (f_last[c] - f[c]) * (u[c] - u_last[c])
+        f_last[c], u_last[c] = -f[c], u[c]
+    return work
+
+
 def warm():
-    """Compile the forces (2D and 3D) into numba's cache on one segment of each."""
+    """Compile the forces, accept and the work booking (2D and 3D) into numba's cache on
+    one segment of each."""
     for d in (2, 3):
         m = 2 * (d + 1)
         comps = np.arange(m * d).reshape(1, -1)
         out = [np.zeros(1), np.zeros((1, d)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)]
         _cable_forces(comps, np.ones((1, m)), np.ones((1, d)), np.ones(1), np.ones(1), 1.0, np.inf, np.zeros(1),
                       np.zeros(1, bool), np.zeros(m * d), *out, np.zeros(m * d))
+    _accept(np.ones(1), np.ones(1), 1.0, np.inf, np.ones(1, bool), *(np.zeros(1) for _ in range(4)), np.zeros(1, bool))
+    _book_work(np.zeros(1, dtype=np.int64), *(np.zeros(1) for _ in range(4)))

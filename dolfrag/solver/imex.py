@@ -150,7 +150,8 @@ class Imex:
         p = float(self.pressure(self.t))
         np.negative(Ku, out=f[own])
         if self.rebars is not None:
-            np.copyto(self._u_n, u)
+            if energies:  # u_n, for the bars' energy at the end of the step
+                np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
         f[own][self.loaded] += p * self.g_load
         if self.viscosity is not None:
