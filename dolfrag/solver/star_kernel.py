@@ -570,16 +570,25 @@ def factor_star(J, store, index):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_star(store, index, R, work):
-    """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,)."""
+def solve_star(store, index, R, work, nonzero):
+    """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,),
+    nonzero (>= N, int) workspaces."""
     N = len(R)
     n_c = index[0]
     order = index[1:1 + N]
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    # the unit unknowns' residuals are mostly zero (an open link's normal row without
+    # shift, a frictionless tangential row): their columns are skipped, in the same order
+    n_nz = 0
+    for k in range(N - n_c):
+        if R[order[n_c + k]] != 0.0:
+            nonzero[n_nz] = k
+            n_nz += 1
     for a in range(n_c):
         s = R[order[a]]
-        for k in range(N - n_c):
+        for j in range(n_nz):
+            k = nonzero[j]
             s -= C[a, k] * R[order[n_c + k]]
         work[a] = s
     lu_solve(A, index[1 + N:1 + N + n_c], work[:n_c])
@@ -713,6 +722,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
     scratch = np.empty(3 * d * d)
     J_work, work = np.empty(N_max * N_max), np.empty(N_max)
+    nonzero = np.empty(N_max, dtype=np.int64)
     for s in range(n_stars):
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -748,7 +758,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
         if predicted:
             affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode,
                             slip_dir[l0:l1], delta)
-            solve_star(store, index, delta[:N], work)
+            solve_star(store, index, delta[:N], work, nonzero)
             for i in range(q):
                 xs[i] = -delta[i]
             for l in range(L):
@@ -852,7 +862,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 _note_factored(L, kNs, kTs, mus, factored[l0:l1])
                 cached[s] = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
             delta[:N] = R[:N]
-            solve_star(store, index, delta[:N], work)
+            solve_star(store, index, delta[:N], work, nonzero)
             if CYCLE < k < FALLBACK:
                 direction[:N] = -delta[:N]
             for i in range(q):
