@@ -103,8 +103,8 @@ def book_reaction_work(r, slip, slip_before, shift, cohesion_T, weight, links, a
 
 
 def warm():
-    """Compile reaction_work and book_reaction_work into numba's cache, for the reactions as the solvers pass them
-    (columns of the (n, d) link-frame array), 2D and 3D."""
+    """Compile reaction_work and book_reaction_work into numba's cache, for the reactions
+    as the solvers pass them (columns of the (n, d) link-frame array), 2D and 3D."""
     for d in (2, 3):
         r, dg = np.zeros((1, d)), np.zeros((1, d))
         reaction_work(r[:, 0], r[:, 1:], dg, np.zeros(1), np.zeros(1))

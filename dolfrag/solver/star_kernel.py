@@ -938,4 +938,5 @@ def warm():
                     entry_codes=np.zeros(L, np.int8), entry_cached=np.zeros(1, np.int8))
         keep_pieces(np.array([0]), **args, rhs=np.ones(q), x=np.zeros(q), r=np.zeros((L, d)), **link, h=1.0, **cache)
         gather_stars(np.arange(q), args["comp_off"], args["link_off"], args["slot_A"], args["slot_B"], frame,
-                     *(np.zeros(q) for _ in range(4)), 1.0, np.zeros((L, d)), np.zeros((L, d)), np.zeros(q), np.zeros(q))
+                     *(np.zeros(q) for _ in range(4)), 1.0, np.zeros((L, d)), np.zeros((L, d)), np.zeros(q),
+                     np.zeros(q))
