@@ -692,7 +692,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     factored) holds each star's last Jacobian, piece and slip directions, what they are
     good for (NONE, APPROXIMATE, EXACT, STALE), and per link the (k_N, k_T, mu) they were
     formed with; Newton's Jacobians replace them, and ``cached`` stays EXACT or STALE only
-    where the star converged on the piece of its stored factors (else NONE).
+    where the star converged on the piece of its stored factors, or EXACT where their
+    prediction solved it (else NONE).
 
     Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, slip_out (the springs'
     jump and the step's jump increment g_{n+1} - g_n = h B (v_- + x), m) per link; per star status (CONVERGED, STALLED,
