@@ -232,7 +232,8 @@ class StarNewton:
         evaluated on those links alone."""
         known, data = self._data
         links = self.layout.links[changed]
-        state = known[links] = self.model.state_at(links)
+        state = self.model.state_at(links)
+        known[links] = state
         for array, values in zip(data, self._link_values(state)):
             array[changed] = values
         return data
