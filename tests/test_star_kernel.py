@@ -156,6 +156,17 @@ def test_kernel_residual_is_the_contact_laws_and_the_springs_on_every_branch(d):
     assert (seen > 10).all()  # every branch met many times
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_an_iterate_gone_nan_is_never_read_as_converged(d):
+    """numba's max() drops a NaN: _evaluate must not report a NaN residual as 0."""
+    rng = np.random.default_rng(17 + d)
+    star = _star(rng, d)
+    x, r = rng.normal(size=star["q"]), rng.normal(size=(star["L"], d))
+    x[3] = np.nan
+    R, scaled_m, scaled_c, *_ = _evaluate(star, x, r)
+    assert np.isnan(R).any() and scaled_m == np.inf and scaled_c == np.inf
+
+
 def _unknowns(star, z):
     q, L, d = star["q"], star["L"], star["d"]
     return z[:q].copy(), np.ascontiguousarray(z[q:].reshape(d, L).T)

@@ -319,7 +319,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
                 F += frame[l, i, j] * t[i]
             force[b * d + j] += h * F
             force[a * d + j] -= h * F
-    scale_m, max_m = 0.0, 0.0
+    scale_m, max_m, finite = 0.0, 0.0, True
     for i in range(q):
         mx = m[i] * x[i]
         scale_m = max(scale_m, abs(rhs[i]), abs(mx), abs(force[i]))
@@ -327,6 +327,9 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
         reaction[i] = R_i / h if fixed[i] else 0.0
         R[i] = 0.0 if fixed[i] else R_i
         max_m = max(max_m, abs(R[i]))
+        finite = finite and R[i] == R[i]
+    if not finite:  # max() drops a NaN: an iterate gone NaN is never read as converged
+        return np.inf, np.inf
     scale_c = max_r + max_terms
     return _ratio(max_m, max(scale_m, floor_m)), _ratio(max_phi, max(scale_c, floor_c))
 
