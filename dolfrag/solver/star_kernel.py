@@ -264,6 +264,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
     for i in range(q):
         force[i] = 0.0
     max_phi, max_r, max_terms = 0.0, 0.0, 0.0
+    probe = 0.0  # the sum of the residual: NaN if any entry is (max() drops a NaN)
     jump, t = scratch[:d], scratch[d:2 * d]
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
@@ -286,6 +287,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
         phi = r_shift - max(0.0, y_N)
         R[q + l] = phi
         max_phi = max(max_phi, abs(phi))
+        probe += phi
         pressed = r_shift > 0
         radius = mu[l] * (r_shift if pressed else 0.0) + cohesion_T[l]
         norm = 0.0
@@ -302,6 +304,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
             phi = rho_l * slip[l, i] if stick else r[l, i] - scale * y_i
             R[q + i * L + l] = phi
             max_phi = max(max_phi, abs(phi))
+            probe += phi
         branch[l, B_CONTACT] = 1.0 if contact else 0.0
         branch[l, B_STICK] = 1.0 if stick else 0.0
         branch[l, B_SLIP] = 1.0 if slipping else 0.0
@@ -319,7 +322,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
                 F += frame[l, i, j] * t[i]
             force[b * d + j] += h * F
             force[a * d + j] -= h * F
-    scale_m, max_m, finite = 0.0, 0.0, True
+    scale_m, max_m = 0.0, 0.0
     for i in range(q):
         mx = m[i] * x[i]
         scale_m = max(scale_m, abs(rhs[i]), abs(mx), abs(force[i]))
@@ -327,8 +330,8 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
         reaction[i] = R_i / h if fixed[i] else 0.0
         R[i] = 0.0 if fixed[i] else R_i
         max_m = max(max_m, abs(R[i]))
-        finite = finite and R[i] == R[i]
-    if not finite:  # max() drops a NaN: an iterate gone NaN is never read as converged
+        probe += R[i]
+    if probe != probe:  # an iterate gone NaN is never read as converged
         return np.inf, np.inf
     scale_c = max_r + max_terms
     return _ratio(max_m, max(scale_m, floor_m)), _ratio(max_phi, max(scale_c, floor_c))
