@@ -212,20 +212,57 @@ def _update_row(A, i, k):
 
 @njit(cache=True, error_model="numpy")
 def lu_solve(LU, piv, b):
-    """Solve A y = b in place (b (n,)), from lu_factor's LU and piv."""
+    """Solve A y = b in place (b (n,)), from lu_factor's LU and piv.
+
+    Four rows at a time: a row's sum is a chain of dependent subtractions, so one row at a
+    time waits on each; four rows share each b_j and run four chains side by side (measured:
+    n = 24, 0.64 -> 0.33 us; 44, 1.8 -> 0.8). Forward, each row is summed in the order of
+    one row at a time; backward, from the last column down (the order the blocks need)."""
     n = LU.shape[0]
     for k in range(n):
         p = piv[k]
         if p != k:
             b[k], b[p] = b[p], b[k]
-    for i in range(n):
+    i = 0
+    while i + 4 <= n:
+        s0, s1, s2, s3 = b[i], b[i + 1], b[i + 2], b[i + 3]
+        for j in range(i):
+            b_j = b[j]
+            s0 -= LU[i, j] * b_j
+            s1 -= LU[i + 1, j] * b_j
+            s2 -= LU[i + 2, j] * b_j
+            s3 -= LU[i + 3, j] * b_j
+        s1 -= LU[i + 1, i] * s0
+        s2 -= LU[i + 2, i] * s0
+        s2 -= LU[i + 2, i + 1] * s1
+        s3 -= LU[i + 3, i] * s0
+        s3 -= LU[i + 3, i + 1] * s1
+        s3 -= LU[i + 3, i + 2] * s2
+        b[i], b[i + 1], b[i + 2], b[i + 3] = s0, s1, s2, s3
+        i += 4
+    for i in range(i, n):
         s = b[i]
         for j in range(i):
             s -= LU[i, j] * b[j]
         b[i] = s
-    for i in range(n - 1, -1, -1):
+    i = n - 1
+    while i >= 3:
+        s0, s1, s2, s3 = b[i], b[i - 1], b[i - 2], b[i - 3]
+        for j in range(n - 1, i, -1):
+            b_j = b[j]
+            s0 -= LU[i, j] * b_j
+            s1 -= LU[i - 1, j] * b_j
+            s2 -= LU[i - 2, j] * b_j
+            s3 -= LU[i - 3, j] * b_j
+        s0 /= LU[i, i]
+        s1 = (s1 - LU[i - 1, i] * s0) / LU[i - 1, i - 1]
+        s2 = ((s2 - LU[i - 2, i] * s0) - LU[i - 2, i - 1] * s1) / LU[i - 2, i - 2]
+        s3 = (((s3 - LU[i - 3, i] * s0) - LU[i - 3, i - 1] * s1) - LU[i - 3, i - 2] * s2) / LU[i - 3, i - 3]
+        b[i], b[i - 1], b[i - 2], b[i - 3] = s0, s1, s2, s3
+        i -= 4
+    for i in range(i, -1, -1):
         s = b[i]
-        for j in range(i + 1, n):
+        for j in range(n - 1, i, -1):
             s -= LU[i, j] * b[j]
         b[i] = s / LU[i, i]
 
