@@ -72,8 +72,19 @@ def _right_hand_side(comps, p0, p1, l0, l1, slot_A, slot_B, K, f, u, rhs, u_s):
 def _product(A_inv, r, y):
     """y = A^-1 r, A^-1 (q, q) symmetric, flat row-major."""
     q = len(r)
-    if q < SHORT:  # y_i = (row i).r
-        for i in range(q):
+    if q < SHORT:  # y_i = (row i).r, four rows side by side (four independent chains)
+        i = 0
+        while i + 4 <= q:
+            a0, a1, a2, a3 = 0.0, 0.0, 0.0, 0.0
+            for j in range(q):
+                r_j = r[j]
+                a0 += A_inv[i * q + j] * r_j
+                a1 += A_inv[(i + 1) * q + j] * r_j
+                a2 += A_inv[(i + 2) * q + j] * r_j
+                a3 += A_inv[(i + 3) * q + j] * r_j
+            y[i], y[i + 1], y[i + 2], y[i + 3] = a0, a1, a2, a3
+            i += 4
+        for i in range(i, q):
             acc = 0.0
             for j in range(q):
                 acc += A_inv[i * q + j] * r[j]
