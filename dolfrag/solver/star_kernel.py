@@ -591,10 +591,11 @@ def factor_star(J, store, index):
     n_c, n_t = 0, N
     for i in range(N):
         unit = J[i, i] == 1.0
-        j = 0
-        while unit and j < N:
-            unit = j == i or J[i, j] == 0.0
-            j += 1
+        if unit:  # a count without an early exit: vectorised, and the rows checked are mostly unit ones
+            nonzeros = 0
+            for j in range(N):
+                nonzeros += J[i, j] != 0.0
+            unit = nonzeros == 1
         if unit:
             n_t -= 1
             order[n_t] = i
