@@ -293,6 +293,53 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
     assert apart > 40 * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d):
+    """Links flipping between contact, open and open with a pulling spring (their other
+    bits kept) change the Jacobian by _flip_rows' U^T V exactly, and the old piece's
+    factors with the Woodbury correction solve the new piece's system."""
+    rng = np.random.default_rng(31 + d)
+    states = (CONTACT, 0, SPRING)
+    for trial in range(40):
+        star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
+        q, L = star["q"], star["L"]
+        N = q + L * d
+        x, r = _unknowns(star, rng.normal(size=N) * np.concatenate([~star["fixed"], np.ones(L * d)]))
+        *_, old, _, e = _evaluate(star, x, r)
+        new = old.copy()
+        links = rng.choice(L, size=1 + trial % 2, replace=False)
+        for l in links:
+            others = [c for c in states if c != old[l] & (CONTACT | SPRING)]
+            new[l] = (old[l] & ~(CONTACT | SPRING)) | others[rng.integers(len(others))]
+        args = [star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m", "fixed", "mu", "k_N",
+                                  "k_T", "h")]
+        slip_dir = np.ascontiguousarray(e)
+        work = dict(branch=np.empty((L, 5)), e=np.zeros((L, max(d - 1, 1))), scratch=np.empty(3 * d * d))
+        J_old, J_new = np.empty((N, N)), np.empty((N, N))
+        store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
+        star_kernel.factor_piece(q, L, d, *args, new, slip_dir, store, index, J_new, **work)
+        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, J_old, **work)
+        U, V, n_u = np.zeros((2 * len(links), N)), np.zeros((2 * len(links), N)), 0
+        for l in links:
+            n_u += star_kernel._flip_rows(q, L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"],
+                                          star["rho"], star["fixed"], star["k_N"], star["h"], l, old[l], new[l],
+                                          U[n_u:n_u + 2], V[n_u:n_u + 2])
+        U, V = U[:n_u].copy(), V[:n_u].copy()
+        # the same entries summed in another order: round-off of the largest
+        assert np.allclose(J_old + U.T @ V, J_new, rtol=0, atol=1e-14 * np.abs(J_new).max()), trial
+        Z, cap, cap_piv = np.empty((n_u, N)), np.empty(n_u * n_u), np.empty(n_u, np.int64)
+        buffers = (np.empty(N), np.empty(N, np.int64))
+        star_kernel._woodbury_factor(store, index, U, V, Z, cap, cap_piv, *buffers)
+        b = rng.normal(size=N)
+        y = b.copy()
+        star_kernel._woodbury_solve(store, index, V, Z, cap, cap_piv, y, np.empty(n_u), *buffers)
+        expected = np.linalg.solve(J_new, b)
+        # the correction adds the capacitance's condition to the old factors' round-off
+        capacitance = np.eye(n_u) + V @ Z.T
+        tol = 1e-13 * np.linalg.cond(J_old) * np.linalg.cond(capacitance) * np.abs(expected).max()
+        assert np.allclose(y, expected, rtol=0, atol=tol), trial
+
+
 @pytest.mark.parametrize("law", ["rccm", "linear_softening"])
 def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, monkeypatch):
     # sound-bar with friction: the pulse reflects at the free end as tension and breaks links
