@@ -782,7 +782,6 @@ def _woodbury_solve(store, index, V, Z, cap, cap_piv, R, t, work, nonzero):
             R[m] -= t[i] * Z[i, m]
 
 
-
 # ---------------------------------------------------------------- the loop over stars
 
 @njit(cache=True, error_model="numpy")
@@ -939,7 +938,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 # factorised again for the next step's prediction, 6 % of the step)
                 kept = done and iteration == 1 and predicted and cached[s] == EXACT
                 # a reference piece (see FLIPS): exact for this step, whatever piece the star ended on
-                kept = kept or (done and cached[s] == EXACT and abs(index[0]) >= WOODBURY)
+                kept = kept or (done and cached[s] == EXACT and index[0] >= WOODBURY)
                 if not (kept or ((cached[s] == EXACT or cached[s] == STALE) and same and done)):
                     cached[s] = NONE
                 if done:
@@ -1004,7 +1003,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             # elsewhere a fresh Jacobian replaces them
             chord = cached[s] == STALE and k < CYCLE and scaled <= CHORD * chord_from
             n_f = -1
-            if cached[s] == EXACT and not same and abs(index[0]) >= WOODBURY:
+            if cached[s] == EXACT and not same and index[0] >= WOODBURY:
                 n_f = _flips(L, fz, scode, code, flipped)
             if same and chord:
                 chord_from = scaled
