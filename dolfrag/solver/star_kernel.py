@@ -20,7 +20,8 @@ traction is k_N <gbar_N>+ and k_T gbar_T, with k_N, k_T (Pa/m) fixed for the ste
 import numpy as np
 from numba import njit
 
-from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, affine_constant, link_code
+from dolfrag.solver.active_set import (CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, affine_constant, link_code,
+                                      spring_normal_tangent)
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -733,8 +734,7 @@ def _flip_rows(q, L, d, slot_A, slot_B, frame, w, rho, fixed, k_N, h, l, old, ne
         V[0, b * d + j] = 0.0 if fixed[b * d + j] else x
         V[0, a * d + j] = 0.0 if fixed[a * d + j] else -x
     V[0, q + l] = (0.0 if c_new else 1.0) - (0.0 if c_old else 1.0)
-    dN_old = 0.0 if c_old else (k_N[l] if (old & SPRING) else 0.0)
-    dN_new = 0.0 if c_new else (k_N[l] if (new & SPRING) else 0.0)
+    dN_old, dN_new = spring_normal_tangent(old, k_N[l]), spring_normal_tangent(new, k_N[l])
     if dN_new == dN_old:
         return 1
     c = 0.25 * h * h * w[l] * (dN_new - dN_old)
