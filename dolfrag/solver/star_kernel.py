@@ -407,7 +407,7 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
         slipping, pressed, scale = branch[l, B_SLIP] > 0, branch[l, B_PRESSED] > 0, branch[l, B_SCALE]
         rho_l = FROZEN * rho[l] if frozen[l] else rho[l]
         # springs: h^2/4 w R^T D R, D = diag(dN, k_T ...)
-        dN = 0.0 if contact else (k_N[l] if (code[l] & SPRING) else 0.0)
+        dN = spring_normal_tangent(code[l], k_N[l])
         for i in range(d):
             for j in range(d):
                 s = dN * R[0, i] * R[0, j]
@@ -484,7 +484,7 @@ def _gauss_seidel(q, L, d, slot_A, slot_B, frame, w, m, fixed, g_n, dg, mu, shif
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         R = frame[l]
-        dN = k_N[l] if (code[l] & SPRING) else 0.0  # spring pulls on an open link
+        dN = spring_normal_tangent(code[l], k_N[l])
         spring[l * d] = dN * g_n[l, 0] + (k_N[l] * max(gbar[l, 0], 0.0) if code[l] & CONTACT else 0.0)
         for i in range(1, d):
             spring[l * d + i] = k_T[l] * g_n[l, i]
