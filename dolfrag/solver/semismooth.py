@@ -189,7 +189,7 @@ class StarNewton:
             damaged = lay.star_of_link[changed]
             lay.cached[damaged[lay.cached[damaged] == star_kernel.EXACT]] = star_kernel.STALE
             per_link = self._refresh(changed)
-        renew = np.flatnonzero((lay.cached == star_kernel.NONE) | (lay.cached == star_kernel.APPROXIMATE))
+        renew = np.flatnonzero(lay.cached == star_kernel.NONE)
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
                                     *lay.cache())

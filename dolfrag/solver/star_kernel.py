@@ -105,6 +105,15 @@ CONVERGED, STALLED, UNCONVERGED = 0, 1, 2
 # since; see CHORD). Measured on bunker-h2 at 8 ms (0.2 m, 2,050 stars): 430 stars with a
 # slipping link started from zero took 4.3 Newton iterations each, half the kernel's time.
 NONE, APPROXIMATE, EXACT, STALE = 0, 1, 2, 3
+# Newton factorises the exact Jacobians of a star with APPROXIMATE factors into workspaces
+# and leaves those in place: while the star converges on their piece within HELD Newton
+# steps they stay its next step's start, with their slip directions and data of an earlier
+# step (held longer, the directions may turn away: the guard renews them then). Renewed
+# every step (keep_pieces), they cost as much as the solve: measured on slab-3d-bending at
+# 65 ms on 2 ranks, 465 of a rank's 686 stars slip (74 coupled unknowns on average, up to
+# 199); keep_pieces took 67-69 ms a step, solve_stars 141-142 ms; with the held factors
+# 27-29 and 143-154 ms (200 steps from the same checkpoint; without the guard the same).
+HELD = 2
 
 # Stale factors (the piece's Jacobian for an earlier damage) stay Newton's matrix on their
 # piece - a chord iteration, which converges to the same solution as the exact matrix - as
@@ -829,10 +838,10 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     (Pa/m). The cache (fac_off, piv_off, factors, pivots, codes, slip_dir, cached,
     factored) holds each star's last Jacobian, piece and slip directions, what they are
     good for (NONE, APPROXIMATE, EXACT, STALE), and per link the (k_N, k_T, mu) they were
-    formed with; Newton's Jacobians replace them, and ``cached`` stays EXACT or STALE only
-    where the star converged on the piece of its stored factors, or EXACT where their
-    prediction solved it or where they are a large star's reference piece (FLIPS; else
-    NONE).
+    formed with; Newton's Jacobians replace them (not APPROXIMATE ones: Newton then works
+    in workspaces), and ``cached`` stays EXACT, STALE or APPROXIMATE only where the star
+    converged on the piece of its stored factors, or EXACT where their prediction solved it
+    or where they are a large star's reference piece (FLIPS; else NONE).
 
     Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, slip_out (the springs'
     jump and the step's jump increment g_{n+1} - g_n = h B (v_- + x), m) per link; per star status (CONVERGED, STALLED,
@@ -866,6 +875,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     U_w, V_w, Z_w = np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max))
     cap, cap_piv, t_w = np.empty(4 * FLIPS * FLIPS), np.empty(2 * FLIPS, np.int64), np.empty(2 * FLIPS)
     flipped, built = np.empty(FLIPS, np.int64), np.empty((FLIPS, 2), np.int64)  # built: (link, its piece)
+    held_store, held_index = np.empty(N_max * N_max), np.empty(2 * N_max + 1, np.int64)  # see APPROXIMATE
+    held_code = np.empty(L_max, np.int8)
     for s in range(n_stars):
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -907,6 +918,15 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             for l in range(L):
                 for i in range(d):
                     rs[l, i] = -delta[q + i * L + l]
+        # Newton's matrix: its factors, its piece and what it is (the stored ones, except
+        # for held-direction factors, which Newton leaves in place: see APPROXIMATE)
+        held = cached[s] == APPROXIMATE
+        kind = cached[s]
+        if held:
+            store, index = held_store[:N * N], held_index[:2 * N + 1]
+            scode = held_code[:L]
+            scode[:] = code_in[:L]
+            kind = NONE
         n_built, n_u = -1, 0  # how many flipped links the Woodbury correction was built for (-1: none)
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
@@ -938,11 +958,18 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 # and the one it reads (an intact link at g_N = 0, open or closed), where both
                 # solve the star to rtol (measured on the 3D bar: 114-207 stars a step, each
                 # factorised again for the next step's prediction, 6 % of the step)
-                kept = done and iteration == 1 and predicted and cached[s] == EXACT
+                kept = done and iteration == 1 and predicted and kind == EXACT
                 # a reference piece (see FLIPS): exact for this step, whatever piece the star ended on
-                kept = kept or (done and cached[s] == EXACT and index[0] >= WOODBURY)
-                if not (kept or ((cached[s] == EXACT or cached[s] == STALE) and same and done)):
+                kept = kept or (done and kind == EXACT and index[0] >= WOODBURY)
+                if held:  # the held-direction factors, while the star converges on their piece
+                    on_piece = True
+                    for l in range(L):
+                        on_piece = on_piece and code[l] == code_in[l]
+                    cached[s] = APPROXIMATE if done and on_piece and iteration <= HELD + 1 else NONE
+                elif not (kept or ((kind == EXACT or kind == STALE) and same and done)):
                     cached[s] = NONE
+                else:
+                    cached[s] = kind
                 if done:
                     status[s] = CONVERGED if scaled <= rtol else STALLED
                     if stalled:
@@ -1003,9 +1030,9 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             # and the step's data determine) a star reuses them - a prediction only short
             # of REGULARISATION is finished by them; stale ones while they contract (CHORD);
             # elsewhere a fresh Jacobian replaces them
-            chord = cached[s] == STALE and k < CYCLE and scaled <= CHORD * chord_from
+            chord = kind == STALE and k < CYCLE and scaled <= CHORD * chord_from
             n_f = -1
-            if cached[s] == EXACT and not same and index[0] >= WOODBURY:
+            if kind == EXACT and not same and index[0] >= WOODBURY:
                 n_f = _flips(L, fz, scode, code, flipped)
             if same and chord:
                 chord_from = scaled
@@ -1023,12 +1050,13 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     n_built = n_f
                     _woodbury_factor(store, index, U_w[:n_u, :N], V_w[:n_u, :N], Z_w[:n_u, :N], cap, cap_piv,
                                      work, nonzero)
-            elif not (cached[s] == EXACT and same):
+            elif not (kind == EXACT and same):
                 _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
                 factor_star(J, store, index)
                 scode[:] = code[:L]
-                _note_factored(L, kNs, kTs, mus, factored[l0:l1])
-                cached[s] = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
+                if not held:
+                    _note_factored(L, kNs, kTs, mus, factored[l0:l1])
+                kind = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
                 n_built = -1
             delta[:N] = R[:N]
             if n_f > 0:
