@@ -2,6 +2,8 @@
 interface/contact.py's Alart-Curnier residuals and each model's springs (interface/models.py,
 interface/laws.py), its Jacobian against finite differences, its LU, and the residual of
 every star it accepts in a run."""
+import itertools
+
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -90,6 +92,13 @@ def _star(rng, d, k=5, L=9, fixed_comps=()):
                 shift=rng.uniform(0, 1, L) * (rng.random(L) < 0.5),
                 cohesion_T=rng.uniform(0, 1, L) * (rng.random(L) < 0.3),
                 k_N=rng.uniform(0, 2, L) * (rng.random(L) < 0.7), k_T=rng.uniform(0, 2, L), h=0.3)
+
+
+def _elimination(star):
+    """The kernel's elimination order of the star's unknowns."""
+    out = np.empty(star["q"] + star["L"] * star["d"], np.int64)
+    star_kernel.unknown_order(star["q"], star["L"], star["d"], star["slot_A"], star["slot_B"], out)
+    return out
 
 
 def _evaluate(star, x, r):
@@ -267,7 +276,7 @@ def test_lu_factors_are_those_of_one_pivot_at_a_time():
 @pytest.mark.parametrize("d", [2, 3])
 def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
     rng = np.random.default_rng(21 + d)
-    apart = 0
+    apart = compared = 0
     for trial in range(40):
         star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
         star["frozen"] = rng.random(star["L"]) < 0.15
@@ -279,18 +288,73 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
         star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
                               star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
                               code, branch, e, J, np.empty(3 * d * d))
+        if np.linalg.cond(J) > 1e12:  # singular (a random star may be a mechanism): nothing to compare
+            continue
+        compared += 1
         store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-        star_kernel.factor_star(J.copy(), store, index)
-        apart += N - index[0]
-        # a right-hand side zero on half its entries too: solve_star skips the unit
-        # unknowns' zero residuals
-        for b in (R, np.where(rng.random(N) < 0.5, 0.0, R)):
-            y = b.copy()
-            star_kernel.solve_star(store, index, y, np.empty(N), np.empty(N, np.int64))
-            expected = np.linalg.solve(J, b)
-            # both backward stable on the same matrix: agreement to condition x round-off
-            assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
-    assert apart > 40 * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
+        # the star's fill-reducing order, and any other: the order changes the round-off only
+        for elimination in (_elimination(star), rng.permutation(N)):
+            star_kernel.factor_star(J.copy(), store, index, elimination)
+            apart += N - index[0]
+            # a right-hand side zero on half its entries too: solve_star skips the unit
+            # unknowns' zero residuals
+            for b in (R, np.where(rng.random(N) < 0.5, 0.0, R)):
+                y = b.copy()
+                star_kernel.solve_star(store, index, y, np.empty(N), np.empty(N, np.int64))
+                expected = np.linalg.solve(J, b)
+                # both backward stable on the same matrix: agreement to condition x round-off
+                assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
+    assert compared >= 30
+    assert apart > 2 * compared * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
+
+
+def _kuhn_star():
+    """The 24 tetrahedra around the centre vertex of 2 x 2 x 2 cubes, each cut into 6 along
+    its diagonal (Kuhn), and the 36 faces they share there: (copies, slot_A, slot_B)."""
+    tets = []
+    for corner in itertools.product(range(2), repeat=3):
+        for axes in itertools.permutations(range(3)):
+            path = [np.array(corner)]
+            for axis in axes:
+                path.append(path[-1] + np.eye(3, dtype=int)[axis])
+            tets.append([tuple(v) for v in path])
+    around = [t for t in tets if (1, 1, 1) in t]
+    faces = {}
+    for i, t in enumerate(around):
+        for face in itertools.combinations(sorted(t), 3):
+            if (1, 1, 1) in face:
+                faces.setdefault(face, []).append(i)
+    pairs = np.array([v for v in faces.values() if len(v) == 2])
+    return len(around), pairs[:, 0].copy(), pairs[:, 1].copy()
+
+
+def test_the_elimination_order_of_a_3d_star_keeps_its_lu_sparse():
+    """unknown_order permutes a 3D star's unknowns, each copy's and each link's together,
+    and on the ring of tetrahedra around a vertex its LU keeps under 60 % of the nonzeros
+    that the order of the unknowns (copies, then reactions) fills in (measured: 25-28 %
+    against 62-66 % of the coupled block; on the damaged 3D bar 27 against 45 %)."""
+    k, slot_A, slot_B = _kuhn_star()
+    rng = np.random.default_rng(3)
+    for trial in range(3):
+        star = dict(_star(rng, 3, k=k, L=len(slot_A)), slot_A=slot_A, slot_B=slot_B)
+        q, L = star["q"], star["L"]
+        N = q + 3 * L
+        order = _elimination(star)
+        assert sorted(order) == list(range(N))
+        nodes = np.where(order < q, order // 3, q + (order - q) % L)  # its copy, or q + its link
+        assert (nodes.reshape(-1, 3) == nodes[::3, None]).all()
+        x, r = _unknowns(star, rng.normal(size=N))
+        *_, code, branch, e = _evaluate(star, x, r)
+        J = np.empty((N, N))
+        star_kernel._jacobian(q, L, 3, slot_A, slot_B, star["frame"], star["w"], star["rho"], star["frozen"],
+                              star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"], code, branch,
+                              e, J, np.empty(27))
+        filled = []
+        for elimination in (np.arange(N), order):
+            store, index = np.zeros(N * N), np.empty(2 * N + 1, np.int64)
+            star_kernel.factor_star(J.copy(), store, index, elimination)
+            filled.append(np.count_nonzero(store[:index[0] ** 2]))
+        assert filled[1] < 0.6 * filled[0], filled
 
 
 @pytest.mark.parametrize("d", [2, 3])
@@ -300,6 +364,7 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
     factors with the Woodbury correction solve the new piece's system."""
     rng = np.random.default_rng(31 + d)
     states = (CONTACT, 0, SPRING)
+    compared = 0
     for trial in range(40):
         star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
         q, L = star["q"], star["L"]
@@ -311,8 +376,8 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         for l in links:
             others = [c for c in states if c != old[l] & (CONTACT | SPRING)]
             new[l] = (old[l] & ~(CONTACT | SPRING)) | others[rng.integers(len(others))]
-        args = [star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m", "fixed", "mu", "k_N",
-                                  "k_T", "h")]
+        args = [*(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m", "fixed")),
+                _elimination(star), *(star[k] for k in ("mu", "k_N", "k_T", "h"))]
         slip_dir = np.ascontiguousarray(e)
         work = dict(branch=np.empty((L, 5)), e=np.zeros((L, max(d - 1, 1))), scratch=np.empty(3 * d * d))
         J_old, J_new = np.empty((N, N)), np.empty((N, N))
@@ -327,6 +392,9 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         U, V = U[:n_u].copy(), V[:n_u].copy()
         # the same entries summed in another order: round-off of the largest
         assert np.allclose(J_old + U.T @ V, J_new, rtol=0, atol=1e-14 * np.abs(J_new).max()), trial
+        if max(np.linalg.cond(J_old), np.linalg.cond(J_new)) > 1e12:  # singular (a mechanism): no solve to compare
+            continue
+        compared += 1
         Z, cap, cap_piv = np.empty((n_u, N)), np.empty(n_u * n_u), np.empty(n_u, np.int64)
         buffers = (np.empty(N), np.empty(N, np.int64))
         star_kernel._woodbury_factor(store, index, U, V, Z, cap, cap_piv, *buffers)
@@ -338,6 +406,7 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         capacitance = np.eye(n_u) + V @ Z.T
         tol = 1e-13 * np.linalg.cond(J_old) * np.linalg.cond(capacitance) * np.abs(expected).max()
         assert np.allclose(y, expected, rtol=0, atol=tol), trial
+    assert compared >= 30
 
 
 @pytest.mark.parametrize("law", ["rccm", "linear_softening"])
@@ -363,8 +432,8 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
         if step % 20 != 19:
             continue
         args = calls[-1]
-        (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, rhs, x_in, g_n, dg, mu, shift,
-         cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:25]
+        (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _, rhs, x_in, g_n, dg, mu,
+         shift, cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:26]
         x, r, status = args[-10], args[-9], args[-5]  # x_out, r_out, status (counted from the end)
         for s in range(lay.n_stars):
             p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
@@ -395,7 +464,7 @@ def _kernel_args(star):
     q, L, d = star["q"], star["L"], star["d"]
     N = q + L * d
     geometry = (np.array([0, q]), np.array([0, L]), star["slot_A"], star["slot_B"], star["frame"], star["w"],
-                star["rho"], star["frozen"], star["m"], star["fixed"])
+                star["rho"], star["frozen"], star["m"], star["fixed"], _elimination(star))
     link = tuple(star[k] for k in ("g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T"))
     cache = [np.array([0, N * N]), np.array([0, 2 * N + 1]), np.zeros(N * N), np.zeros(2 * N + 1, np.int64),
              np.zeros(L, np.int8), np.zeros((L, d - 1)), np.zeros(1, np.int8), np.zeros((L, 3))]

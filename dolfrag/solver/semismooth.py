@@ -64,7 +64,8 @@ class StarLayout(FlatStars):
     """A rank's stars flat, as the kernel reads them (solver/star_kernel.py): the flat
     layout (interface/stars.FlatStars), each link's frame, weight, step stiffness rho
     (Pa/m) and whether both its copies are prescribed (frozen), each component's mass and
-    whether it is prescribed, and the cache of each star's last Jacobian factors."""
+    whether it is prescribed, each star's elimination order of its unknowns, and the cache
+    of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one
     STATE = ("factors", "pivots", "codes", "slip_dir", "cached", "factored")
@@ -81,6 +82,7 @@ class StarLayout(FlatStars):
         held = np.zeros(len(stars.constrained) // d, dtype=bool)  # per local dof: every component prescribed
         held[self.comps[::d] // d] = self.fixed.reshape(-1, d).all(axis=1)
         self.frozen = np.ascontiguousarray(held[links.dof_A[self.links]] & held[links.dof_B[self.links]])
+        self.elimination = star_kernel.unknown_orders(self.comp_off, self.link_off, self.slot_A, self.slot_B, d)
         N = q + L * d
         self.fac_off = np.concatenate([[0], np.cumsum(N * N)]).astype(np.int64)
         self.piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)]).astype(np.int64)
@@ -93,7 +95,7 @@ class StarLayout(FlatStars):
 
     def geometry(self):
         return (self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
-                self.frozen, self.mass, self.fixed)
+                self.frozen, self.mass, self.fixed, self.elimination)
 
     def cache(self):
         return (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,

@@ -19,8 +19,10 @@ from dolfrag.solver.active_set import CONTACT, SLIP, STICK
 
 START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-slip prediction",
          star_kernel.EXACT: "predicted", star_kernel.STALE: "predicted by stale factors"}
-# the kernel's inputs a dump holds, in solve_stars' order (geometry, data, cache)
-GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed")
+# the kernel's inputs in solve_stars' order (geometry, data, cache); a dump holds all but the
+# stars' elimination order, which replay forms again from their links
+GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed",
+            "elimination")
 DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
 PER_COMP = ("mass", "fixed", "rhs", "x_in")
 PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
@@ -62,6 +64,8 @@ def replay(path, **change):
         star = select(np.array([s]), comp_off, link_off, {k: data[k] for k in PER_COMP},
                       {k: data[k] for k in PER_LINK})
         q, L = star["comp_off"][1], star["link_off"][1]
+        star["elimination"] = star_kernel.unknown_orders(star["comp_off"], star["link_off"], star["slot_A"],
+                                                         star["slot_B"], d)
         N = q + L * d
         factors, pivots = np.zeros(N * N), np.zeros(2 * N + 1, np.int64)
         if data["cached"][s] != star_kernel.NONE:  # the stored factors its prediction used
