@@ -94,6 +94,17 @@ def _star(rng, d, k=5, L=9, fixed_comps=()):
                 k_N=rng.uniform(0, 2, L) * (rng.random(L) < 0.7), k_T=rng.uniform(0, 2, L), h=0.3)
 
 
+def _factor(star, code, branch, e, elimination):
+    """factor_jacobian on one star at the branches _evaluate gave: (store, index)."""
+    q, L, d = star["q"], star["L"], star["d"]
+    N = q + L * d
+    store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
+    star_kernel.factor_jacobian(q, L, d, *(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m",
+                                                             "fixed", "mu", "k_N", "k_T", "h")),
+                                code, branch, e, elimination, store, index, np.empty(N, np.int64), np.empty(12 * d * d))
+    return store, index
+
+
 def _elimination(star):
     """The kernel's elimination order of the star's unknowns."""
     out = np.empty(star["q"] + star["L"] * star["d"], np.int64)
@@ -202,7 +213,7 @@ def test_star_jacobian_is_the_derivative_of_the_residual_on_each_piece(d):
         J = np.empty((N, N))
         star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
                               star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
-                              code, branch, e, J, np.empty(3 * d * d))
+                              code, branch, e, J, np.empty(12 * d * d))
         eps = 1e-6
         FD = np.empty((N, N))
         crossed = False
@@ -287,15 +298,17 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
         J = np.empty((N, N))
         star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
                               star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
-                              code, branch, e, J, np.empty(3 * d * d))
+                              code, branch, e, J, np.empty(12 * d * d))
         if np.linalg.cond(J) > 1e12:  # singular (a random star may be a mechanism): nothing to compare
             continue
         compared += 1
-        store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
         # the star's fill-reducing order, and any other: the order changes the round-off only
         for elimination in (_elimination(star), rng.permutation(N)):
-            star_kernel.factor_star(J.copy(), store, index, elimination)
-            apart += N - index[0]
+            store, index = _factor(star, code, branch, e, elimination)
+            n_c = index[0]
+            apart += N - n_c
+            unit = index[1 + n_c:1 + N]  # set apart without being formed: identity rows of J
+            assert (J[unit] == np.eye(N)[unit]).all()
             # a right-hand side zero on half its entries too: solve_star skips the unit
             # unknowns' zero residuals
             for b in (R, np.where(rng.random(N) < 0.5, 0.0, R)):
@@ -345,14 +358,9 @@ def test_the_elimination_order_of_a_3d_star_keeps_its_lu_sparse():
         assert (nodes.reshape(-1, 3) == nodes[::3, None]).all()
         x, r = _unknowns(star, rng.normal(size=N))
         *_, code, branch, e = _evaluate(star, x, r)
-        J = np.empty((N, N))
-        star_kernel._jacobian(q, L, 3, slot_A, slot_B, star["frame"], star["w"], star["rho"], star["frozen"],
-                              star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"], code, branch,
-                              e, J, np.empty(27))
         filled = []
         for elimination in (np.arange(N), order):
-            store, index = np.zeros(N * N), np.empty(2 * N + 1, np.int64)
-            star_kernel.factor_star(J.copy(), store, index, elimination)
+            store, index = _factor(star, code, branch, e, elimination)
             filled.append(np.count_nonzero(store[:index[0] ** 2]))
         assert filled[1] < 0.6 * filled[0], filled
 
@@ -379,11 +387,13 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         args = [*(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m", "fixed")),
                 _elimination(star), *(star[k] for k in ("mu", "k_N", "k_T", "h"))]
         slip_dir = np.ascontiguousarray(e)
-        work = dict(branch=np.empty((L, 5)), e=np.zeros((L, max(d - 1, 1))), scratch=np.empty(3 * d * d))
+        work = dict(branch=np.empty((L, 5)), e=np.zeros((L, max(d - 1, 1))), scratch=np.empty(12 * d * d))
         J_old, J_new = np.empty((N, N)), np.empty((N, N))
+        for J, piece in ((J_new, new), (J_old, old)):  # the whole matrices of the two pieces
+            star_kernel.piece_branches(L, d, piece, slip_dir, work["branch"], work["e"])
+            star_kernel._jacobian(q, L, d, *args[:8], *args[9:], piece, work["branch"], work["e"], J, work["scratch"])
         store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-        star_kernel.factor_piece(q, L, d, *args, new, slip_dir, store, index, J_new, **work)
-        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, J_old, **work)
+        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, np.empty(N, np.int64), **work)
         U, V, n_u = np.zeros((2 * len(links), N)), np.zeros((2 * len(links), N)), 0
         for l in links:
             n_u += star_kernel._flip_rows(q, L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"],

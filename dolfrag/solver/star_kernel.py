@@ -7,7 +7,7 @@ them, copy-major) and the links [link_off[s], link_off[s+1]) of the star-link ar
 (L of them), whose two copies are slot_A, slot_B (0 .. q/d - 1). A star's unknowns z are
 ordered (x (q), r_N of every link, then each tangential component of every link), N =
 q + L d of them; its Jacobian's LU factors (partial pivoting, a third of the work of an
-explicit inverse; factor_star sets the identity rows apart) are kept in
+explicit inverse; factor_jacobian sets the identity rows apart) are kept in
 ``factors`` at fac_off[s] (N^2 values) with their index at piv_off[s] (2 N + 1), for the
 next step's prediction (solver/active_set.py).
 
@@ -397,18 +397,25 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
 
 
 @njit(cache=True, error_model="numpy")
-def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch):
-    """Generalised Jacobian J (N, N) of (R_m, phi) at the point _evaluate last saw (its
-    branch, e and code). On frozen links identity rows (see FROZEN); on prescribed
-    components identity rows and zero columns; sticking links get REGULARISATION on
-    their reaction diagonal. scratch (>= 3 d^2,) workspace."""
-    N = q + L * d
-    J[:, :] = 0.0
+def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+                   position, n_c, A, C, scratch):
+    """The generalised Jacobian of (R_m, phi) at the point _evaluate last saw (its branch, e
+    and code), added into the rows of the unknowns with position (N,) below n_c: entry
+    (i, j) into A[position[i], position[j]] (n_c, n_c) where position[j] < n_c, else into
+    C[position[i], position[j] - n_c]; the rows of the other unknowns, identity rows, are not
+    stored. Frozen links have identity rows (see FROZEN); prescribed components identity
+    rows and zero columns; sticking links get REGULARISATION on their reaction diagonal.
+    Each link's block (its two copies and its reactions) is formed in scratch (>= 12 d^2,)
+    and then added where it goes: a helper call per entry, with its array arguments, cost
+    six times the whole matrix (measured)."""
     for i in range(q):
-        J[i, i] = m[i]
+        if not fixed[i] and position[i] < n_c:
+            A[position[i], position[i]] += m[i]
     RtDR = scratch[:d * d].reshape((d, d))
     JgR = scratch[d * d:2 * d * d].reshape((d, d))
     P = scratch[2 * d * d:3 * d * d].reshape((d, d))
+    block = scratch[3 * d * d:12 * d * d].reshape((3 * d, 3 * d))  # rows and columns: copy a, copy b, reactions
+    at = np.empty(3 * d, dtype=np.int64)
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         R = frame[l]
@@ -423,18 +430,6 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
                 for k in range(1, d):
                     s += k_T[l] * R[k, i] * R[k, j]
                 RtDR[i, j] = 0.25 * h * h * w[l] * s
-        for i in range(d):
-            for j in range(d):
-                J[b * d + i, b * d + j] += RtDR[i, j]
-                J[a * d + i, a * d + j] += RtDR[i, j]
-                J[b * d + i, a * d + j] -= RtDR[i, j]
-                J[a * d + i, b * d + j] -= RtDR[i, j]
-        # reactions in the momentum rows: -h w B^T
-        for i in range(d):
-            row = q + i * L + l
-            for j in range(d):
-                J[b * d + j, row] = -h * w[l] * R[i, j]
-                J[a * d + j, row] = h * w[l] * R[i, j]
         # tangential projection: P = scale (I - e e^T) where slipping
         for i in range(d - 1):
             for j in range(d - 1):
@@ -448,30 +443,54 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
                     s += (rho_l * (1.0 if i == k else 0.0) if stick else rho_l * P[i - 1, k - 1]) * R[k, j]
                 JgR[i, j] = s
         for i in range(d):
-            row = q + i * L + l
             for j in range(d):
-                J[row, b * d + j] = h * JgR[i, j]
-                J[row, a * d + j] = -h * JgR[i, j]
+                block[i, j] = block[d + i, d + j] = RtDR[i, j]
+                block[d + i, j] = block[i, d + j] = -RtDR[i, j]
+                block[d + j, 2 * d + i] = -h * w[l] * R[i, j]  # reactions in the momentum rows: -h w B^T
+                block[j, 2 * d + i] = h * w[l] * R[i, j]
+                block[2 * d + i, d + j] = h * JgR[i, j]
+                block[2 * d + i, j] = -h * JgR[i, j]
         # d phi / d r
-        J[q + l, q + l] = 0.0 if contact else 1.0
+        block[2 * d, 2 * d:] = 0.0
+        block[2 * d, 2 * d] = 0.0 if contact else 1.0
         for i in range(1, d):
-            row = q + i * L + l
-            J[row, q + l] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
+            block[2 * d + i, 2 * d] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
             for k in range(1, d):
-                J[row, q + k * L + l] = 0.0 if stick else (1.0 if i == k else 0.0) - P[i - 1, k - 1]
+                block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - P[i - 1, k - 1]
         if stick:
             for i in range(d):
-                J[q + i * L + l, q + i * L + l] += REGULARISATION
-        if frozen[l]:
-            for i in range(d):
-                row = q + i * L + l
-                J[row, :] = 0.0
-                J[row, row] = 1.0
+                block[2 * d + i, 2 * d + i] += REGULARISATION
+        for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
+            u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
+            at[c] = -1 if u < q and fixed[u] else position[u]
+        for r in range(3 * d):
+            i = at[r]
+            if i < 0 or i >= n_c:
+                continue
+            if r >= 2 * d and frozen[l]:  # identity rows
+                A[i, i] += 1.0
+                continue
+            for c in range(3 * d):
+                j = at[c]
+                if j < 0:
+                    continue
+                if j < n_c:
+                    A[i, j] += block[r, c]
+                else:
+                    C[i, j - n_c] += block[r, c]
     for i in range(q):
-        if fixed[i]:
-            J[i, :] = 0.0
-            J[:, i] = 0.0
-            J[i, i] = 1.0
+        if fixed[i] and position[i] < n_c:
+            A[position[i], position[i]] += 1.0
+
+
+@njit(cache=True, error_model="numpy")
+def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch):
+    """The whole generalised Jacobian J (N, N), every row stored (_jacobian_into): the
+    matrix the stored factors stand for, as the tests check it."""
+    N = q + L * d
+    J[:, :] = 0.0
+    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+                   np.arange(N), N, J, J[:, :0], scratch)
     return N
 
 
@@ -667,46 +686,50 @@ def unknown_orders(comp_off, link_off, slot_A, slot_B, d):
 
 
 @njit(cache=True, error_model="numpy")
-def factor_star(J, store, index, elimination):
-    """Factorise a star's Jacobian J (N, N) with its unit rows set apart: an unknown whose
-    row is that of the identity (an open link's normal row, a frictionless tangential row,
-    a frozen link, a prescribed component) is its own residual's, and leaves the others
-    a system on the coupled unknowns only (an intact RCCM star in tension: its q momentum
-    rows alone; a 2D star: LU of ~18 rows instead of 24 costs half). The coupled unknowns
-    are eliminated in the star's ``elimination`` order (N,: unknown_order). store (>= N^2):
-    the LU factors of the coupled block (n_c, n_c), then its columns of the unit unknowns
-    (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit ones, the
-    pivots."""
-    N = J.shape[0]
+def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
+                    elimination, store, index, position, scratch):
+    """Factorise a star's Jacobian (_jacobian_into, arguments as there) with its unit rows set
+    apart: an unknown whose row is that of the identity (an open link's normal row, a
+    tangential row neither sticking nor slipping, a frozen link, a prescribed component) is
+    its own residual's, and leaves the others a system on the coupled unknowns only (an
+    intact RCCM star in tension: its q momentum rows alone; a 2D star: LU of ~18 rows
+    instead of 24 costs half). The coupled unknowns are eliminated in the star's
+    ``elimination`` order (N,: unknown_order). Only their rows are formed, straight into
+    store (>= N^2): the LU factors of the coupled block (n_c, n_c), then its columns of the
+    unit unknowns (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit
+    ones, the pivots. position (>= N, int) workspace. (Formed whole and then copied, a 3D
+    star's Jacobian cost more than its LU: measured on the damaged 3D bar, 5 + 13 ms of a
+    101 ms kernel call, the LU 17 ms.)"""
+    N = q + L * d
     order = index[1:1 + N]
     n_c, n_t = 0, N
-    for i in elimination:
-        unit = J[i, i] == 1.0
-        if unit:  # a count without an early exit: vectorised, and the rows checked are mostly unit ones
-            nonzeros = 0
-            for j in range(N):
-                nonzeros += J[i, j] != 0.0
-            unit = nonzeros == 1
+    for u in elimination:
+        if u < q:
+            unit = fixed[u]
+        else:
+            l = (u - q) % L
+            moves = branch[l, B_SLIP] > 0 if u >= q + L else branch[l, B_CONTACT] > 0  # tangential, normal
+            unit = frozen[l] or not (moves or branch[l, B_STICK] > 0)
         if unit:
             n_t -= 1
-            order[n_t] = i
+            order[n_t] = u
         else:
-            order[n_c] = i
+            order[n_c] = u
             n_c += 1
     index[0] = n_c
+    for i in range(N):
+        position[order[i]] = i
+    store[:n_c * N] = 0.0
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
-    for a in range(n_c):
-        for b in range(n_c):
-            A[a, b] = J[order[a], order[b]]
-        for k in range(N - n_c):
-            C[a, k] = J[order[a], order[n_c + k]]
+    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+                   position, n_c, A, C, scratch)
     lu_factor(A, index[1 + N:1 + N + n_c])
 
 
 @njit(cache=True, error_model="numpy")
 def solve_star(store, index, R, work, nonzero):
-    """Solve J y = R in place (R (N,)) from factor_star's store and index; work (>= N,),
+    """Solve J y = R in place (R (N,)) from factor_jacobian's store and index; work (>= N,),
     nonzero (>= N, int) workspaces."""
     N = len(R)
     n_c = index[0]
@@ -732,14 +755,11 @@ def solve_star(store, index, R, work, nonzero):
 
 
 @njit(cache=True, error_model="numpy")
-def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, elimination, mu, k_N, k_T, h, code, slip_dir,
-                 store, index, J, branch, e, scratch):
-    """factor_star of the Jacobian of the piece ``code`` (L,) of one star with its slip
-    directions slip_dir (L, d - 1) held (what keep_pieces stores for the next step's
-    prediction): the branches are the code's, and the tangential projection of a slipping
-    link is left out (P = 0: in 2D P = scale (1 - e^2) vanishes anyway; in 3D the direction
-    is held, solver/active_set.py). Arguments as _jacobian and factor_star; J (N, N), branch
-    (>= L, 5), e (>= L, d - 1), scratch (>= 3 d^2) workspaces."""
+def piece_branches(L, d, code, slip_dir, branch, e):
+    """The branches (branch (>= L, 5), e (>= L, d - 1)) of the piece ``code`` (L,) of one star
+    with its slip directions slip_dir (L, d - 1) held: the tangential projection of a
+    slipping link is left out (scale 0: in 2D P = scale (1 - e^2) vanishes anyway; in 3D the
+    direction is held, solver/active_set.py)."""
     for l in range(L):
         c = code[l]
         branch[l, B_CONTACT] = 1.0 if c & CONTACT else 0.0
@@ -753,8 +773,17 @@ def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, elimi
                 e[l, 0] = -1.0 if c & NEGATIVE else 1.0
             else:
                 e[l, :d - 1] = slip_dir[l, :d - 1]
-    _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e, J, scratch)
-    factor_star(J, store, index, elimination)
+
+
+@njit(cache=True, error_model="numpy")
+def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, elimination, mu, k_N, k_T, h, code, slip_dir,
+                 store, index, position, branch, e, scratch):
+    """factor_jacobian of the piece ``code`` (L,) of one star with its slip directions
+    slip_dir (L, d - 1) held (piece_branches): what keep_pieces stores for the next step's
+    prediction. Arguments as factor_jacobian; branch (>= L, 5), e (>= L, d - 1) workspaces."""
+    piece_branches(L, d, code, slip_dir, branch, e)
+    factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
+                    elimination, store, index, position, scratch)
 
 
 @njit(cache=True, error_model="numpy")
@@ -938,8 +967,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     R, delta, direction = np.empty(N_max), np.empty(N_max), np.empty(N_max)
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
-    scratch = np.empty(3 * d * d)
-    J_work, work = np.empty(N_max * N_max), np.empty(N_max)
+    scratch = np.empty(12 * d * d)
+    work, position = np.empty(N_max), np.empty(N_max, dtype=np.int64)
     nonzero = np.empty(N_max, dtype=np.int64)
     U_w, V_w, Z_w = np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max))
     cap, cap_piv, t_w = np.empty(4 * FLIPS * FLIPS), np.empty(2 * FLIPS, np.int64), np.empty(2 * FLIPS)
@@ -956,7 +985,6 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
             k_N[l0:l1], k_T[l0:l1]
         store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
         order = elimination[p0 + d * l0:p0 + d * l0 + N]
-        J = J_work[:N * N].reshape((N, N))
         scode = codes[l0:l1]
         xs, rs = x[:q], r[:L]
         if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
@@ -1121,8 +1149,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                     _woodbury_factor(store, index, U_w[:n_u, :N], V_w[:n_u, :N], Z_w[:n_u, :N], cap, cap_piv,
                                      work, nonzero)
             elif not (kind == EXACT and same):
-                _jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, J, scratch)
-                factor_star(J, store, index, order)
+                factor_jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, order, store,
+                                index, position, scratch)
                 scode[:] = code[:L]
                 if not held:
                     _note_factored(L, kNs, kTs, mus, factored[l0:l1])
@@ -1162,8 +1190,8 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
     branch, e = np.empty((L_max, 5)), np.zeros((L_max, max(d - 1, 1)))
     code = np.empty(L_max, dtype=np.int8)
     R = np.empty(N_max)
-    scratch = np.empty(3 * d * d)
-    J_work = np.empty(N_max * N_max)
+    scratch = np.empty(12 * d * d)
+    position = np.empty(N_max, dtype=np.int64)
     for s in stars:
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -1183,7 +1211,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
         factor_piece(q, L, d, sA, sB, fr, w, rh, fz, m, fx, elimination[p0 + d * l0:p0 + d * l0 + N], mus, kNs, kTs,
                      h, code[:L], slip_dir[l0:l1],
                      factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1],
-                     J_work[:N * N].reshape((N, N)), branch, e, scratch)
+                     position, branch, e, scratch)
         codes[l0:l1] = code[:L]
         _note_factored(L, kNs, kTs, mus, factored[l0:l1])
         cached[s] = _kind(L, d, fz, code)
