@@ -397,7 +397,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
 
 
 @njit(cache=True, error_model="numpy")
-def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
                    position, n_c, A, C, scratch):
     """The generalised Jacobian of (R_m, phi) at the point _evaluate last saw (its branch, e
     and code), added into the rows of the unknowns with position (N,) below n_c: entry
@@ -489,7 +489,7 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
     matrix the stored factors stand for, as the tests check it."""
     N = q + L * d
     J[:, :] = 0.0
-    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
                    np.arange(N), N, J, J[:, :0], scratch)
     return N
 
@@ -722,7 +722,7 @@ def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu
     store[:n_c * N] = 0.0
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
-    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, branch, e, code,
+    _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
                    position, n_c, A, C, scratch)
     lu_factor(A, index[1 + N:1 + N + n_c])
 
