@@ -101,7 +101,8 @@ def _factor(star, code, branch, e, elimination):
     store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
     star_kernel.factor_jacobian(q, L, d, *(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m",
                                                              "fixed", "mu", "k_N", "k_T", "h")),
-                                code, branch, e, elimination, store, index, np.empty(N, np.int64), np.empty(12 * d * d))
+                                code, branch, e, elimination, store, index, np.empty(N + 3 * d, np.int64),
+                                np.empty(12 * d * d))
     return store, index
 
 
@@ -393,7 +394,7 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
             star_kernel.piece_branches(L, d, piece, slip_dir, work["branch"], work["e"])
             star_kernel._jacobian(q, L, d, *args[:8], *args[9:], piece, work["branch"], work["e"], J, work["scratch"])
         store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, np.empty(N, np.int64), **work)
+        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, np.empty(N + 3 * d, np.int64), **work)
         U, V, n_u = np.zeros((2 * len(links), N)), np.zeros((2 * len(links), N)), 0
         for l in links:
             n_u += star_kernel._flip_rows(q, L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"],

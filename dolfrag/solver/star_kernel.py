@@ -398,7 +398,7 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
 
 @njit(cache=True, error_model="numpy")
 def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   position, n_c, A, C, scratch):
+                   position, n_c, A, C, scratch, at):
     """The generalised Jacobian of (R_m, phi) at the point _evaluate last saw (its branch, e
     and code), added into the rows of the unknowns with position (N,) below n_c: entry
     (i, j) into A[position[i], position[j]] (n_c, n_c) where position[j] < n_c, else into
@@ -406,8 +406,9 @@ def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu,
     stored. Frozen links have identity rows (see FROZEN); prescribed components identity
     rows and zero columns; sticking links get REGULARISATION on their reaction diagonal.
     Each link's block (its two copies and its reactions) is formed in scratch (>= 12 d^2,)
-    and then added where it goes: a helper call per entry, with its array arguments, cost
-    six times the whole matrix (measured)."""
+    and then added where it goes (at (>= 3 d, int): its rows' and columns' positions): a
+    helper call per entry, with its array arguments, cost six times the whole matrix
+    (measured)."""
     for i in range(q):
         if not fixed[i] and position[i] < n_c:
             A[position[i], position[i]] += m[i]
@@ -415,7 +416,6 @@ def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu,
     JgR = scratch[d * d:2 * d * d].reshape((d, d))
     P = scratch[2 * d * d:3 * d * d].reshape((d, d))
     block = scratch[3 * d * d:12 * d * d].reshape((3 * d, 3 * d))  # rows and columns: copy a, copy b, reactions
-    at = np.empty(3 * d, dtype=np.int64)
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         R = frame[l]
@@ -490,7 +490,7 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
     N = q + L * d
     J[:, :] = 0.0
     _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   np.arange(N), N, J, J[:, :0], scratch)
+                   np.arange(N), N, J, J[:, :0], scratch, np.empty(3 * d, dtype=np.int64))
     return N
 
 
@@ -697,7 +697,7 @@ def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu
     ``elimination`` order (N,: unknown_order). Only their rows are formed, straight into
     store (>= N^2): the LU factors of the coupled block (n_c, n_c), then its columns of the
     unit unknowns (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit
-    ones, the pivots. position (>= N, int) workspace. (Formed whole and then copied, a 3D
+    ones, the pivots. position (>= N + 3 d, int) workspace. (Formed whole and then copied, a 3D
     star's Jacobian cost more than its LU: measured on the damaged 3D bar, 5 + 13 ms of a
     101 ms kernel call, the LU 17 ms.)"""
     N = q + L * d
@@ -723,7 +723,7 @@ def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
     _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   position, n_c, A, C, scratch)
+                   position[:N], n_c, A, C, scratch, position[N:])
     lu_factor(A, index[1 + N:1 + N + n_c])
 
 
@@ -968,7 +968,7 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     best_x, best_r = np.empty(q_max), np.empty((L_max, d))
     base_x, base_r = np.empty(q_max), np.empty((L_max, d))
     scratch = np.empty(12 * d * d)
-    work, position = np.empty(N_max), np.empty(N_max, dtype=np.int64)
+    work, position = np.empty(N_max), np.empty(N_max + 3 * d, dtype=np.int64)
     nonzero = np.empty(N_max, dtype=np.int64)
     U_w, V_w, Z_w = np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max)), np.empty((2 * FLIPS, N_max))
     cap, cap_piv, t_w = np.empty(4 * FLIPS * FLIPS), np.empty(2 * FLIPS, np.int64), np.empty(2 * FLIPS)
@@ -1191,7 +1191,7 @@ def keep_pieces(stars, comp_off, link_off, slot_A, slot_B, frame, weight, rho, f
     code = np.empty(L_max, dtype=np.int8)
     R = np.empty(N_max)
     scratch = np.empty(12 * d * d)
-    position = np.empty(N_max, dtype=np.int64)
+    position = np.empty(N_max + 3 * d, dtype=np.int64)
     for s in stars:
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0

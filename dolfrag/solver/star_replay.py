@@ -72,7 +72,7 @@ def replay(path, **change):
             k_N, k_T, mu = star["factored"].T.copy()  # the data they were formed with
             star_kernel.factor_piece(q, L, d, *[star[k] for k in GEOMETRY[2:]], mu, k_N, k_T, float(data["h"]),
                                      star["codes"], star["slip_dir"], factors, pivots,
-                                     np.empty(N, np.int64), np.empty((L, 5)), np.empty((L, max(d - 1, 1))),
+                                     np.empty(N + 3 * d, np.int64), np.empty((L, 5)), np.empty((L, max(d - 1, 1))),
                                      np.empty(12 * d * d))
         counters = np.zeros(4, np.int64)
         star_kernel.solve_stars(
