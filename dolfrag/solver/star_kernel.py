@@ -933,8 +933,8 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     x_in (m/s: the prescribed increments); per star link (link_off): slot_A, slot_B,
     frame (d, d), weight (m or m^2), rho (Pa/m: the step's stiffness), frozen, g_n, dg
     (link frame, m: the jump of u_n and h B v_-), mu, shift, cohesion_T (Pa), k_N, k_T
-    (Pa/m); per star unknown, the stars' elimination orders (unknown_orders). The cache (fac_off, piv_off, factors, pivots, codes, slip_dir, cached,
-    factored) holds each star's last Jacobian, piece and slip directions, what they are
+    (Pa/m); per star unknown, the stars' elimination orders (unknown_orders). The cache
+    (fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored) holds each star's last Jacobian, piece and slip directions, what they are
     good for (NONE, APPROXIMATE, EXACT, STALE), and per link the (k_N, k_T, mu) they were
     formed with; Newton's Jacobians replace them (not APPROXIMATE ones: Newton then works
     in workspaces), and ``cached`` stays EXACT, STALE or APPROXIMATE only where the star
