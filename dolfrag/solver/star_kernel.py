@@ -1022,11 +1022,14 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
         # (see REGULARISATION), which a warm start carried from step to step until they
         # choked the friction cones (measured: threshold and linear-softening runs then
         # failed to converge; cold, they complete)
-        rs[:, :] = 0.0
+        for l in range(L):  # with the piece and data the star starts from, element by element
+            for i in range(d):  # (slice assignments cost more per star: measured)
+                rs[l, i] = 0.0
+            code_in[l] = scode[l]
+            for i in range(3):
+                factored_in[l, i] = factored[l0 + l, i]
         predicted = cached[s] != NONE and predict and not imposed  # imposed motion: not cached
         start = cached[s] if predicted else NONE
-        code_in[:L] = scode
-        factored_in[:L] = factored[l0:l1]
         if predicted:
             affine_constant(q, L, d, sA, sB, fr, w, rh, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs, h, scode,
                             slip_dir[l0:l1], delta)
