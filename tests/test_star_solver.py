@@ -43,3 +43,16 @@ def test_the_predicted_step_is_newtons_step_from_zero():
     # damage, measured), but the same links break
     broken = predicted.model.broken()
     assert broken.sum() > 100 and np.array_equal(broken, from_zero.model.broken())
+
+
+def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
+    """A checkpoint written before slip_dir held the projection scale (one column fewer)
+    restores as held directions with scale 0, the kernel's meaning of that state, instead of
+    an array the kernel would read past (star_kernel.piece_branches)."""
+    from dolfrag.run.checkpoint import restore_object
+    lay = _integrator(True).interface.layout
+    n, d = lay.slip_dir.shape
+    older = np.random.default_rng(0).normal(size=(n, d - 1))
+    restore_object(lay, {"slip_dir": older})
+    assert lay.slip_dir.shape == (n, d) and lay.slip_dir.flags.c_contiguous
+    assert np.array_equal(lay.slip_dir[:, :d - 1], older) and (lay.slip_dir[:, d - 1] == 0).all()

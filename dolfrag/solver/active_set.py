@@ -61,7 +61,8 @@ def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, 
     w (L,) weights (m or m^2); rho (L,) augmentation (Pa/m); m, fixed (q,) lumped mass
     (kg) and prescribed components; rhs (q,) h f (N s); g_n, dg (L, d) m; mu (-), shift,
     cohesion_T (Pa), k_N, k_T (Pa/m) (L,) the friction, the constraint's cohesion and the
-    springs' secants; h (s); slip_dir (L, d - 1) the slip direction of slipping links."""
+    springs' secants; h (s); slip_dir (L, d) the slip direction of slipping links (its first
+    d - 1 columns)."""
     for i in range(q):
         c[i] = -rhs[i]
     for l in range(L):

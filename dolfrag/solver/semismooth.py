@@ -89,9 +89,19 @@ class StarLayout(FlatStars):
         self.factors = np.zeros(self.fac_off[-1])
         self.pivots = np.zeros(self.piv_off[-1], dtype=np.int64)
         self.codes = np.zeros(len(self.links), dtype=np.int8)
-        self.slip_dir = np.zeros((len(self.links), max(d - 1, 1)))  # held 3D slip directions (active_set.py)
+        self.slip_dir = np.zeros((len(self.links), d))
         self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT, STALE
         self.factored = np.zeros((len(self.links), 3))  # per link: the (k_N, k_T, mu) the factors hold
+
+    @property
+    def slip_dir(self):
+        """Per star link, the 3D slip direction and projection scale its star's factors hold
+        (star_kernel.piece_branches), (n, d)."""
+        return self._slip_dir
+
+    @slip_dir.setter
+    def slip_dir(self, value):  # from a checkpoint of before the scale column: scale 0, held directions
+        self._slip_dir = np.pad(value, ((0, 0), (0, self.frame.shape[1] - value.shape[1])))
 
     def geometry(self):
         return (self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,

@@ -102,18 +102,15 @@ CONVERGED, STALLED, UNCONVERGED = 0, 1, 2
 # reused by it); the exact Jacobian of an affine piece (a prediction that solves the star if
 # it stays on the piece, and Newton's matrix on it); the exact Jacobian of an affine piece
 # for the springs and friction of an earlier step (STALE: the damage of a link has changed
-# since; see CHORD). Measured on bunker-h2 at 8 ms (0.2 m, 2,050 stars): 430 stars with a
-# slipping link started from zero took 4.3 Newton iterations each, half the kernel's time.
+# since; see CHORD), or of a 3D slipping piece at an earlier iterate (_keep_newton_factors).
+# Measured on bunker-h2 at 8 ms (0.2 m, 2,050 stars): 430 stars with a slipping link started
+# from zero took 4.3 Newton iterations each, half the kernel's time.
 NONE, APPROXIMATE, EXACT, STALE = 0, 1, 2, 3
 # Newton factorises the exact Jacobians of a star with APPROXIMATE factors into workspaces
-# and leaves those in place: while the star converges on their piece within HELD Newton
-# steps they stay its next step's start, with their slip directions and data of an earlier
-# step (held longer, the directions may turn away: the guard renews them then). Renewed
-# every step (keep_pieces), they cost as much as the solve: measured on slab-3d-bending at
-# 65 ms on 2 ranks, 465 of a rank's 686 stars slip (74 coupled unknowns on average, up to
-# 199); keep_pieces took 67-69 ms a step, solve_stars 141-142 ms; with the held factors
-# 27-29 and 143-154 ms (200 steps from the same checkpoint; without the guard the same).
-HELD = 2
+# and leaves those in place: they stay its next step's start where their prediction solves
+# it; where Newton's last Jacobian is of a slipping piece, that one replaces them
+# (_keep_newton_factors); else they are given up (NONE) and keep_pieces forms the converged
+# piece's.
 
 # Stale factors (the piece's Jacobian for an earlier damage) stay Newton's matrix on their
 # piece - a chord iteration, which converges to the same solution as the exact matrix - as
@@ -757,9 +754,10 @@ def solve_star(store, index, R, work, nonzero):
 @njit(cache=True, error_model="numpy")
 def piece_branches(L, d, code, slip_dir, branch, e):
     """The branches (branch (>= L, 5), e (>= L, d - 1)) of the piece ``code`` (L,) of one star
-    with its slip directions slip_dir (L, d - 1) held: the tangential projection of a
-    slipping link is left out (scale 0: in 2D P = scale (1 - e^2) vanishes anyway; in 3D the
-    direction is held, solver/active_set.py)."""
+    with its slip directions slip_dir (L, d: the direction, then the scale of the tangential
+    projection P = scale (I - e e^T)) held. keep_pieces holds directions with scale 0 (the
+    projection left out, solver/active_set.py); Newton's kept factors (_keep_newton_factors) the
+    direction and scale they were formed at. In 2D P = scale (1 - e^2) vanishes anyway."""
     for l in range(L):
         c = code[l]
         branch[l, B_CONTACT] = 1.0 if c & CONTACT else 0.0
@@ -773,13 +771,14 @@ def piece_branches(L, d, code, slip_dir, branch, e):
                 e[l, 0] = -1.0 if c & NEGATIVE else 1.0
             else:
                 e[l, :d - 1] = slip_dir[l, :d - 1]
+                branch[l, B_SCALE] = slip_dir[l, d - 1]
 
 
 @njit(cache=True, error_model="numpy")
 def factor_piece(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, elimination, mu, k_N, k_T, h, code, slip_dir,
                  store, index, position, branch, e, scratch):
     """factor_jacobian of the piece ``code`` (L,) of one star with its slip directions
-    slip_dir (L, d - 1) held (piece_branches): what keep_pieces stores for the next step's
+    slip_dir (L, d) held (piece_branches): what keep_pieces stores for the next step's
     prediction. Arguments as factor_jacobian; branch (>= L, 5), e (>= L, d - 1) workspaces."""
     piece_branches(L, d, code, slip_dir, branch, e)
     factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
@@ -964,6 +963,32 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
 
 
 @njit(cache=True, error_model="numpy")
+def _keep_newton_factors(L, N, d, l0, held, held_store, held_index, held_code, formed_at, store, index, codes,
+                         slip_dir):
+    """A 3D star that converged after Newton's last Jacobian was formed at a slip keeps that
+    Jacobian as its STALE factors: the next step predicts with them, and Newton uses them as
+    a chord while they contract (CHORD), instead of starting from held-direction factors
+    (APPROXIMATE) that keep_pieces forms again and that contract poorly. They are copied
+    from the workspaces where its start was held, else already in place; its slipping
+    links' slip_dir get the direction and scale they were formed at, from which
+    factor_piece forms them again. Measured on slab-3d-bending resumed at 0.1 s on 2 ranks,
+    150 steps, before, after, after, before: solve_stars 16.5-17.5 -> 15.1-16.7 ms,
+    keep_pieces 6.8-7.2 -> 0.9 ms a step; the same broken links and fragments."""
+    if held:
+        n_c = held_index[0]
+        for i in range(n_c * N):
+            store[i] = held_store[i]
+        for i in range(1 + N + n_c):
+            index[i] = held_index[i]
+        for l in range(L):
+            codes[l0 + l] = held_code[l]
+    for l in range(L):
+        if codes[l0 + l] & SLIP:
+            for i in range(d):
+                slip_dir[l0 + l, i] = formed_at[l, i]
+
+
+@njit(cache=True, error_model="numpy")
 def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                  rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                  floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
@@ -995,6 +1020,7 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
     flipped, built = np.empty(FLIPS, np.int64), np.empty((FLIPS, 2), np.int64)  # built: (link, its piece)
     held_store, held_index = np.empty(N_max * N_max), np.empty(2 * N_max + 1, np.int64)  # see APPROXIMATE
     held_code = np.empty(L_max, np.int8)
+    formed_at = np.empty((L_max, d))  # per link, the slip direction and scale of Newton's last factors
     for s in range(n_stars):
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
@@ -1049,6 +1075,7 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
             scode[:] = code_in[:L]
             kind = NONE
         n_built, n_u = -1, 0  # how many flipped links the Woodbury correction was built for (-1: none)
+        smooth = False  # store holds an exact Jacobian formed in this call at a 3D slip (_keep_newton_factors)
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
         chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
@@ -1082,11 +1109,15 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
                 kept = done and iteration == 1 and predicted and kind == EXACT
                 # a reference piece (see FLIPS): exact for this step, whatever piece the star ended on
                 kept = kept or (done and kind == EXACT and index[0] >= WOODBURY)
-                if held:  # the held-direction factors, while the star converges on their piece
-                    on_piece = True
-                    for l in range(L):
-                        on_piece = on_piece and code[l] == code_in[l]
-                    cached[s] = APPROXIMATE if done and on_piece and iteration <= HELD + 1 else NONE
+                if done and smooth:  # Newton's last Jacobian, the next step's chord (_keep_newton_factors)
+                    _keep_newton_factors(L, N, d, l0, held, held_store, held_index, held_code, formed_at,
+                                         factors[fac_off[s]:fac_off[s] + N * N],
+                                         pivots[piv_off[s]:piv_off[s] + 2 * N + 1], codes, slip_dir)
+                    if held:
+                        _note_factored(L, kNs, kTs, mus, factored[l0:l1])
+                    cached[s] = STALE
+                elif held:  # the held-direction factors, where their prediction solved the star
+                    cached[s] = APPROXIMATE if done and iteration == 1 else NONE
                 elif not (kept or ((kind == EXACT or kind == STALE) and same and done)):
                     cached[s] = NONE
                 else:
@@ -1178,6 +1209,12 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
                 if not held:
                     _note_factored(L, kNs, kTs, mus, factored[l0:l1])
                 kind = EXACT if _kind(L, d, fz, code) == EXACT else NONE  # the exact Jacobian at the iterate
+                smooth = kind == NONE
+                if smooth:
+                    for l in range(L):
+                        for i in range(d - 1):
+                            formed_at[l, i] = e[l, i]
+                        formed_at[l, d - 1] = branch[l, B_SCALE]
                 n_built = -1
             delta[:N] = R[:N]
             if n_f > 0:
@@ -1245,6 +1282,7 @@ def _keep_pieces(d, stars, comp_off, link_off, slot_A, slot_B, frame, weight, rh
         for l in range(L):
             if code[l] & SLIP:
                 slip_dir[l0 + l, :d - 1] = e[l, :d - 1]
+                slip_dir[l0 + l, d - 1] = 0.0
         factor_piece(q, L, d, sA, sB, fr, w, rh, fz, m, fx, elimination[p0 + d * l0:p0 + d * l0 + N], mus, kNs, kTs,
                      h, code[:L], slip_dir[l0:l1],
                      factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1],
@@ -1268,7 +1306,7 @@ def warm():
         N = q + L * d
         cache = dict(fac_off=np.array([0, N * N]), piv_off=np.array([0, 2 * N + 1]), factors=np.zeros(N * N),
                      pivots=np.zeros(2 * N + 1, np.int64), codes=np.zeros(L, np.int8),
-                     slip_dir=np.zeros((L, max(d - 1, 1))), cached=np.zeros(1, np.int8), factored=np.zeros((L, 3)))
+                     slip_dir=np.zeros((L, d)), cached=np.zeros(1, np.int8), factored=np.zeros((L, 3)))
         solve_stars(**args, rhs=np.ones(q), x_in=np.zeros(q), **link, h=1.0, rtol=RTOL, max_iterations=100,
                     predict=True, floor_m=0.0, floor_c=0.0, **cache, x_out=np.zeros(q), r_out=np.zeros((L, d)),
                     reaction=np.zeros(q), gbar_out=np.zeros((L, d)), slip_out=np.zeros((L, d)),

@@ -57,6 +57,8 @@ def replay(path, **change):
     data = dict(np.load(path))
     data.update(change)
     comp_off, link_off, d = data["comp_off"], data["link_off"], data["frame"].shape[1]
+    if data["slip_dir"].shape[1] < d:  # a dump of before slip_dir held the scales: directions held, scale 0
+        data["slip_dir"] = np.pad(data["slip_dir"], ((0, 0), (0, d - data["slip_dir"].shape[1])))
     n = len(comp_off) - 1
     status, residual, iterations = np.zeros(n, np.int8), np.zeros(n), np.zeros(n, np.int64)
     for s in range(n):  # one call per star: the kernel counts iterations per call
