@@ -937,9 +937,11 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     last Jacobian, piece and slip directions, what they are good for (NONE, APPROXIMATE,
     EXACT, STALE), and per link the (k_N, k_T, mu) they were formed with; Newton's Jacobians
     replace them (not APPROXIMATE ones: Newton then works in workspaces), and ``cached``
-    stays EXACT, STALE or APPROXIMATE only where the star converged on the piece of its
-    stored factors, or EXACT where their prediction solved it or where they are a large
-    star's reference piece (FLIPS; else NONE).
+    stays EXACT or STALE only where the star converged on the piece of its stored factors,
+    APPROXIMATE where their prediction solved it, EXACT where an exact prediction solved it
+    or where they are a large star's reference piece (FLIPS), becomes STALE where Newton's
+    last Jacobian was of a 3D slip (_keep_newton_factors; slip_dir then holds the directions
+    and scales it was formed at), else NONE.
 
     Writes x_out, reaction (N) per component; r_out (Pa), gbar_out, slip_out (the springs'
     jump and the step's jump increment g_{n+1} - g_n = h B (v_- + x), m) per link; per star
