@@ -16,8 +16,9 @@ def p_wave_modulus(E, nu, hypothesis="plane_strain"):
 
 def series_interface_modulus(M, C_N, spacing):
     """1D estimate of the modulus of a bulk of modulus M (Pa) cut every ``spacing`` (m) by
-    springs C_N (Pa/m) in series: M / (1 + M / (C_N spacing))."""
-    return M / (1 + M / (C_N * spacing))
+    springs C_N (Pa/m) in series: M / (1 + M / (C_N spacing)); M itself for C_N None (a
+    rigid law, interface/models.py: no springs, no added compliance)."""
+    return M if C_N is None else M / (1 + M / (C_N * spacing))
 
 
 def wave_speed(modulus, rho):

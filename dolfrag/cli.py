@@ -110,6 +110,22 @@ def _h2_air_lines(numbers):
                                 for name, note in notes.items() if name in numbers])
 
 
+def _case_text(name):
+    """A built-in case's TOML, followed by comment lines giving the values its strength
+    class fills in and where each comes from (so the text stays a valid case file)."""
+    text, case = builtin_case_text(name), load_case(name)
+    sources, case = case.sources, case.to_dict()
+    if not sources:
+        return text
+    lines = ["", "# Values in force that the file does not give (SI units), and their source:"]
+    for key, source in sources.items():
+        value = case
+        for part in key.split("."):
+            value = value[part]
+        lines.append(f"#   {key} = {value:.6g}  ({source})")
+    return text.rstrip("\n") + "\n" + "\n".join(lines)
+
+
 def main(argv=None):
     # a closed pipe (`dolfrag cases | head`) ends the process quietly, as for any command-line tool
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)
@@ -130,7 +146,7 @@ def main(argv=None):
             return 0
         if args.command == "cases":
             if comm.rank == 0:
-                print(builtin_case_text(args.name) if args.name else "\n".join(builtin_cases()))
+                print(_case_text(args.name) if args.name else "\n".join(builtin_cases()))
             return 0
         case = load_case(args.case, args.set)
         loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank

@@ -58,7 +58,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dolfrag import bunker
+from dolfrag import bunker, concrete
 from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
 
 GEOMETRY_KINDS = ("rectangle", "box", "bunker", "file")
@@ -67,6 +67,7 @@ SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", 
 REGIMES = ("deflagration", "detonation")  # of an h2-air explosion
 LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
+RATE_EFFECTS = ("none", "fib2010")
 LAWS = tuple(_LAW_REGISTRY)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
@@ -266,13 +267,19 @@ class Mesh:
 
 @dataclass(frozen=True)
 class Material:
-    """[material] (every cell) and [materials.NAME] (cells of physical group NAME)."""
+    """[material] (every cell) and [materials.NAME] (cells of physical group NAME).
+
+    ``grade`` (a strength class of EN 1992-1-1 Table 3.1, e.g. "C30/37") gives E, nu and
+    rho the class's values (dolfrag/concrete.py, docs/materials.md) and [interface] its
+    sigma_c = f_ctm and G_c = G_F; a key given explicitly overrides its value."""
     E: float = _f("float", bounds="> 0", unit="Pa")             # Young's modulus [Pa], > 0
     nu: float = _f("float", bounds=">= 0, < 0.5")               # Poisson's ratio [-], [0, 0.5)
     rho: float = _f("float", bounds="> 0", unit="kg/m^3")       # density [kg/m^3], > 0
     hypothesis: str = _f("str", "plane_strain", choices=HYPOTHESES)  # 2D only, ignored in 3D
-    # artificial bulk viscosity in compression (viscosity.py; imex only: theta damps with theta > 1/2)
-    bulk_viscosity: bool = _f("bool", True)
+    # artificial bulk viscosity in compression (viscosity.py; imex only: theta damps with
+    # theta > 1/2); off by default: a linear elastic bulk carries no shock to spread
+    bulk_viscosity: bool = _f("bool", False)
+    grade: str | None = _f("str", None, choices=tuple(concrete.GRADES))  # EN 1992-1-1 class
 
 
 @dataclass(frozen=True)
@@ -304,6 +311,9 @@ class Interface:
     # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
     # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the reference paper's law)
     mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=("law", "rccm", "rccm_decoupled"))
+    # strength at the strain rate of the bulk beside each link (interface/rate.py):
+    # "fib2010" sigma_c x the fib Model Code 2010 tensile factor, "none" sigma_c alone
+    rate_effect: str | None = _f("str", "none", choices=RATE_EFFECTS, when=("law", "linear_softening"))
 
     def adhesion_energy(self, C_N: float) -> float:
         """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (docs/method.md)."""
@@ -487,6 +497,8 @@ class Case:
     run: Run
     debris: Debris
     source: Path | None = None       # the case file this came from
+    # where each value a strength class filled in came from ({"material.E": "EN 1992-1-1 ..."})
+    sources: dict[str, str] = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Plain JSON-serialisable dict (paths as str, arrays and tuples as lists)."""
@@ -764,12 +776,47 @@ def _check_h2_air(load: Load) -> None:
                         "must be a number > 0 (s)")
 
 
+_GRADE_KEYS = {"E": "E", "nu": "nu", "rho": "rho"}  # [material] key: Concrete field
+# [interface] key: Concrete field, for the laws with that key
+_GRADE_STRENGTH = {"sigma_c": ("f_ctm", ("rccm", "rccm_decoupled", "linear_softening")),
+                   "G_c": ("G_F", ("rccm_decoupled", "linear_softening"))}
+
+
+def _grade_defaults(raw: dict) -> dict[str, str]:
+    """Fill in the keys a strength class gives (Material's docstring) where the case leaves
+    them out; return {dotted key: source} of what was filled."""
+    sources = {}
+    tables = [("material", raw.get("material"))]
+    if isinstance(raw.get("materials"), dict):
+        tables += [(f"materials.{name}", t) for name, t in raw["materials"].items()]
+    grade_spec = next(f.metadata["spec"] for f in fields(Material) if f.name == "grade")
+    for prefix, table in tables:
+        if not isinstance(table, dict) or "grade" not in table:
+            continue
+        _convert(f"{prefix}.grade", table["grade"], grade_spec, Path("."))
+        values = concrete.concrete(table["grade"])
+        for key, name in _GRADE_KEYS.items():
+            if key not in table:
+                table[key] = getattr(values, name)
+                sources[f"{prefix}.{key}"] = f"{values.grade}: {concrete.SOURCES[key]}"
+    material, interface = raw.get("material"), raw.setdefault("interface", {})
+    if isinstance(material, dict) and material.get("grade") in concrete.GRADES and isinstance(interface, dict):
+        values = concrete.concrete(material["grade"])
+        law = interface.get("law", "elastic")
+        for key, (name, laws) in _GRADE_STRENGTH.items():
+            if law in laws and key not in interface and not (key == "sigma_c" and "w" in interface):
+                interface[key] = getattr(values, name)
+                sources[f"interface.{key}"] = f"{values.grade}: {concrete.SOURCES[name]}"
+    return sources
+
+
 def _build(raw: dict, source: Path) -> Case:
     base = source.parent
     for key, value in raw.items():
         if key not in _TOP_KEYS:
             kind = "section" if isinstance(value, dict) else "key"
             raise CaseError(f"unknown {kind} '{key}'; allowed: {', '.join(_TOP_KEYS)}")
+    sources = _grade_defaults(raw)
     parts = {s: _section(cls, raw.get(s, {}), s, base) for s, cls in _SECTIONS.items()}
     mats = raw.get("materials", {})
     if not isinstance(mats, dict):
@@ -782,7 +829,7 @@ def _build(raw: dict, source: Path) -> Case:
         parts["load"] = replace(parts["load"], t=t, p=p)
     case = Case(name=_convert("name", raw.get("name", source.stem), _Spec("str"), base),
                 description=_convert("description", raw.get("description", ""), _Spec("str"), base),
-                materials=materials, source=source, **parts)
+                materials=materials, source=source, sources=sources, **parts)
     _check(case)
     return case
 

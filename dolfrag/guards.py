@@ -12,7 +12,7 @@ is a lower bound.
 import math
 import sys
 
-from dolfrag import analytic, bunker, viscosity
+from dolfrag import analytic, bunker, concrete, viscosity
 from dolfrag.config import CaseError
 
 CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)
@@ -129,8 +129,31 @@ def _bunker_warning(geometry, h):
             "resolve a wave or a bending crack")
 
 
+def is_structure(case):
+    """A reinforced, supported or bunker case (not a free specimen such as a Hopkinson bar)."""
+    sup = case.supports
+    return bool(case.rebar.faces or sup.clamped or sup.simple or case.geometry.kind == "bunker")
+
+
+def toughness_warning(case):
+    """The one-line warning (or None) when a structure's crack energy follows the mesh:
+    RCCM with w = sigma_c^2 / C_N and C_N = stiffness_ratio E / h makes it proportional
+    to h, far below the fracture energy of concrete (docs/materials.md)."""
+    interface = case.interface
+    if interface.law != "rccm" or interface.w is not None or not is_structure(case):
+        return None
+    C_N = interface.stiffness(case.material.E, case.mesh.size)[0]
+    grade = case.material.grade
+    G_F = (f"G_F = {concrete.concrete(grade).G_F:.0f} J/m^2 for {grade}" if grade else
+           "G_F = 100-150 J/m^2 for ordinary concrete")
+    return (f"dolfrag: warning: interface.law = 'rccm' ties the crack energy to the mesh: w = sigma_c^2 / C_N = "
+            f"{interface.sigma_c**2 / C_N:.3g} J/m^2 at mesh.size = {case.mesh.size:g} m, where concrete needs "
+            f"{G_F} (fib Model Code 2010); interface.law = 'linear_softening' with material.grade keeps it "
+            "(docs/materials.md)")
+
+
 def report(case, comm):
-    """check(case), its warning printed to stderr by rank 0."""
-    warning = check(case)
-    if warning and comm.rank == 0:
-        print(warning, file=sys.stderr)
+    """check(case) and toughness_warning(case), their warnings printed to stderr by rank 0."""
+    for warning in (check(case), toughness_warning(case)):
+        if warning and comm.rank == 0:
+            print(warning, file=sys.stderr)

@@ -14,7 +14,7 @@ import numpy as np
 from dolfrag import (bulk, compat, guards, loads, mesh, rebar, rebar_faces, rebar_layout, space as spaces, supports,
                      viscosity)
 from dolfrag.config import CaseError
-from dolfrag.interface import links as link_table, models
+from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
 from dolfrag.solver.theta import accuracy_time_step
@@ -69,6 +69,14 @@ class Problem:
         problem's); k_step as in models.build."""
         case = self.case
         return models.build(case.interface, case.material.E, case.mesh.size, len(self.links), h or self.h, k_step)
+
+    def rate_strength(self):
+        """The links' strengths at the bulk strain rate (interface/rate.RateStrength) when
+        interface.rate_effect asks for them, else None."""
+        interface = self.case.interface
+        if interface.rate_effect != "fib2010":
+            return None
+        return rate.RateStrength(self.space, self.links, interface.sigma_c)
 
     @classmethod
     def build(cls, case, comm, owner_rule=None):

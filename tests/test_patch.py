@@ -129,7 +129,7 @@ def test_linear_softening_follows_its_secant_and_dissipates_G_c():
     # rigid, at the softened strength, until the secant is down to the step's own stiffness
     k_step = step_stiffness(links, integ.m, integ.h, 2)
     delta_open = SIGMA_C / (k_step + SIGMA_C / delta_c)
-    assert integ.model.delta_open == pytest.approx(delta_open, rel=1e-12)  # same formula: round-off
+    assert integ.model.delta_open() == pytest.approx(delta_open, rel=1e-12)  # same formula: round-off
     assert np.all((0.01 * delta_c < delta_open) & (delta_open < 0.1 * delta_c))  # a rigid phase of 5-50 steps
     delta_max, sprung, expected = 0.0, False, []
     for gb, gm in zip(gbar, g_mid):  # every quantity of the law lagged by one step

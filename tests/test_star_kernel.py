@@ -26,7 +26,7 @@ def _models(n, rng):
     decoupled = models.RccmDecoupled(n, 1e12, 4e11, 4e6, 100.0, mu=0.3)
     decoupled.beta[:] = rng.uniform(0, 1, n) * (rng.random(n) < 0.8)
     soft = models.LinearSoftening(n, 4e6, 100.0, mu=0.3, k_open=1e13)
-    soft.delta_max[:] = rng.uniform(0, 1.2, n) * soft.delta_c
+    soft.delta_max[:] = rng.uniform(0, 1.2, n) * soft.delta_c()
     soft.sprung[:] = rng.random(n) < 0.6
     threshold = models.Threshold(n, 4e6, 1e-5, mu=0.3)
     threshold.lost[:] = rng.random(n) < 0.3
@@ -69,7 +69,7 @@ def test_the_lagged_secants_are_the_laws_traction_on_their_unloading_branch():
     assert np.allclose(r_T, k_T[:, None] * g_T, rtol=1e-14, atol=0)
     # linear softening, sprung, inside its reached opening (unloading to the origin)
     soft = all_models["linear_softening"]
-    delta_max = rng.uniform(0.1, 0.9, n) * soft.delta_c
+    delta_max = rng.uniform(0.1, 0.9, n) * soft.delta_c()
     k_N, k_T = soft.secants(delta_max)
     g_N, g_T = rng.uniform(-0.5, 0.5, n) * delta_max, rng.uniform(-0.4, 0.4, (n, d - 1)) * delta_max[:, None]
     r_N, r_T, *_ = laws.linear_softening(g_N, g_T, delta_max, soft.sigma_c, soft.G_c)

@@ -57,10 +57,12 @@ class Elastic:
 
 
 class _Model:
-    """What every breakable model offers the star solvers: ``secants`` (the springs of a
-    step, with the state lagged), ``springs`` (their traction and tangent), ``trial_state``
-    (the state the law gives at the step's jumps: the one ``store`` accepts), and the last
-    two together in ``cohesion``."""
+    """What every breakable model offers the star solvers: ``friction``, ``shift``,
+    ``shear_cohesion`` and ``secants`` of link states (with the indices ``links`` of the
+    links they belong to, which a model with per-link parameters reads; the others ignore
+    them), ``springs`` (the traction and tangent of the secants), ``trial_state`` (the
+    state the law gives at the step's jumps: the one ``store`` accepts), and the last two
+    together in ``cohesion``."""
 
     def springs(self, g_N, g_T, state_n):
         """Traction of the step (Pa) at the link-frame jumps g_N (n,), g_T (n, d-1) (m),
@@ -116,10 +118,10 @@ class Rccm(_Model):
     def state_at(self, links):
         return self.beta[links]
 
-    def friction(self, beta):
+    def friction(self, beta, links=None):
         return laws.rccm_friction_coefficient(beta, self.mu)
 
-    def shift(self, beta):
+    def shift(self, beta, links=None):
         """Tension (Pa) the contact constraint itself may carry: none, the springs do."""
         return np.zeros_like(beta)
 
@@ -128,7 +130,7 @@ class Rccm(_Model):
     def absorb(self, work):
         """Cohesive work of the constraint: none (no shift)."""
 
-    def secants(self, beta_n):
+    def secants(self, beta_n, links=None):
         """The springs (k_N, k_T) = beta_n^2 (C_N, C_T) (Pa/m) of a step, the damage lagged
         by one step: r = beta_n^2 C g (normal part in opening only).
 
@@ -267,7 +269,7 @@ class _Rigid(_Model):
         self.work = np.zeros(n_links)  # J/m^2: cohesive work on each rigid link
         self.released = np.zeros(n_links)
 
-    def friction(self, state):
+    def friction(self, state, links=None):
         return np.full(np.shape(state), float(self.mu))
 
     def absorb(self, work):
@@ -302,13 +304,13 @@ class Threshold(_Rigid):
     def state_at(self, links):
         return self.lost[links]
 
-    def shift(self, lost):
+    def shift(self, lost, links=None):
         return np.where(lost > 0, 0.0, self.R_c)
 
-    def shear_cohesion(self, lost):
+    def shear_cohesion(self, lost, links=None):
         return np.zeros_like(lost)
 
-    def secants(self, lost_n):
+    def secants(self, lost_n, links=None):
         """No springs: the whole law is in the shifted contact constraint."""
         return np.zeros(len(lost_n)), np.zeros(len(lost_n))
 
@@ -353,43 +355,65 @@ class LinearSoftening(_Rigid):
     only unloading differs (the rigid link closes at its strength instead of along the
     secant), which dissipates nothing extra once the link springs.
 
+    The strength is per link (``sigma_c``, (n_links,)): ``set_strength`` changes it on the
+    links that have not opened yet (a rate effect, interface/rate.py); an opened link keeps
+    the strength it opened at, so that it dissipates G_c whatever the rate did after.
+    Methods taking link states take the links they belong to (``links``: indices into the
+    model's arrays, default all).
+
     State per link (``state_at``): delta_max (m) once on its spring, -delta_max while still
     rigid. As for RCCM the secant and the strength are lagged by one step (each star
     problem stays monotone) and the drop S_n -> S at the mid jump is booked as released
     energy; at the switch, the cohesive work done while rigid less the energy of the new
     secant is released."""
 
-    STATE = ("work", "released", "delta_max", "sprung")  # what a checkpoint keeps
+    STATE = ("work", "released", "delta_max", "sprung", "sigma_c")  # what a checkpoint keeps
 
     def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf):
         super().__init__(n_links, mu)
-        self.sigma_c, self.G_c, self.beta_ratio, self.kappa = sigma_c, G_c, beta_ratio, kappa
-        self.delta_c = 2 * G_c / sigma_c
-        self.delta_open = np.maximum(OPENING_TOLERANCE * self.delta_c,
-                                     sigma_c / (np.asarray(k_open, dtype=float) + sigma_c / self.delta_c))
+        self.G_c, self.beta_ratio, self.kappa = G_c, beta_ratio, kappa
+        self.k_open = np.broadcast_to(np.asarray(k_open, dtype=float), (n_links,))
         self.a_T = beta_ratio**2 / kappa  # the law's shear weight on the traction
         self.delta_max = np.zeros(n_links)
         self.sprung = np.zeros(n_links, dtype=bool)
+        self.sigma_c = np.full(n_links, float(sigma_c))
+
+    def delta_c(self, links=slice(None)):
+        """Opening at full separation 2 G_c / sigma_c (m) of the links."""
+        return 2 * self.G_c / self.sigma_c[links]
+
+    def delta_open(self, links=slice(None)):
+        """Opening (m) past which the links leave their rigid constraint for their springs."""
+        sigma_c, delta_c = self.sigma_c[links], self.delta_c(links)
+        return np.maximum(OPENING_TOLERANCE * delta_c, sigma_c / (self.k_open[links] + sigma_c / delta_c))
+
+    def set_strength(self, sigma_c):
+        """Give the links that have not opened the strengths sigma_c (Pa, (n_links,));
+        returns the indices of the links whose strength changed."""
+        changed = np.flatnonzero((self.delta_max == 0) & (sigma_c != self.sigma_c))
+        self.sigma_c[changed] = sigma_c[changed]
+        return changed
 
     def state_at(self, links):
         return np.where(self.sprung[links], self.delta_max[links], -self.delta_max[links])
 
-    def shift(self, state):
+    def shift(self, state, links=slice(None)):
         """The rigid links' tensile strength (Pa), softened along the law: 0 once sprung."""
-        return np.where(state > 0, 0.0, self.sigma_c * np.maximum(1 + state / self.delta_c, 0.0))
+        return np.where(state > 0, 0.0, self.sigma_c[links] * np.maximum(1 + state / self.delta_c(links), 0.0))
 
-    def shear_cohesion(self, state):
-        return self.shift(state) / self.beta_ratio
+    def shear_cohesion(self, state, links=slice(None)):
+        return self.shift(state, links) / self.beta_ratio
 
-    def secant(self, state):
+    def secant(self, state, links=slice(None)):
         """S(delta_max) (Pa/m): the traction factor of the law, 0 while rigid or broken."""
-        inside = (state > 0) & (state < self.delta_c)
-        return np.where(inside, self.sigma_c * (1 / np.where(inside, state, 1.0) - 1 / self.delta_c), 0.0)
+        delta_c = self.delta_c(links)
+        inside = (state > 0) & (state < delta_c)
+        return np.where(inside, self.sigma_c[links] * (1 / np.where(inside, state, 1.0) - 1 / delta_c), 0.0)
 
-    def secants(self, state_n):
+    def secants(self, state_n, links=slice(None)):
         """Secant springs (S, a_T S) (Pa/m) at the lagged state_n (none on rigid links:
         the constraint carries them)."""
-        S = self.secant(state_n)
+        S = self.secant(state_n, links)
         return S, self.a_T * S
 
     def _delta(self, g_N, g_T):
@@ -405,13 +429,13 @@ class LinearSoftening(_Rigid):
         trial ``state`` is not used)."""
         old, was = self.delta_max[links], self.sprung[links]
         delta = self._delta(g_N, g_T)
-        new = np.where(delta > OPENING_TOLERANCE * self.delta_c, np.maximum(old, delta), old)
-        now = was | (new > np.broadcast_to(self.delta_open, self.sprung.shape)[links])
+        new = np.where(delta > OPENING_TOLERANCE * self.delta_c(links), np.maximum(old, delta), old)
+        now = was | (new > self.delta_open(links))
         switching = now & ~was
         psi = self._psi(g_N, g_T)
-        S_new = self.secant(new)
+        S_new = self.secant(new, links)
         self.released[links] += np.where(switching, self.work[links] - 0.5 * S_new * psi,
-                                         0.5 * (self.secant(old) - S_new) * psi * was)
+                                         0.5 * (self.secant(old, links) - S_new) * psi * was)
         self.work[links[switching]] = 0.0
         self.delta_max[links] = new
         self.sprung[links] = now
@@ -423,11 +447,11 @@ class LinearSoftening(_Rigid):
         return np.where(self.rigid(), self.work, 0.5 * self.secant(self.delta_max) * self._psi(g_N, g_T))
 
     def broken(self):
-        return self.delta_max >= self.delta_c
+        return self.delta_max >= self.delta_c()
 
     def damage(self):
         """delta_max / delta_c, clipped to 1: 0 intact, 1 broken."""
-        return np.minimum(self.delta_max / self.delta_c, 1.0)
+        return np.minimum(self.delta_max / self.delta_c(), 1.0)
 
 
 class Law(NamedTuple):

@@ -68,14 +68,16 @@ class Imex:
     nodal forces per pascal; pressure: p(t) in Pa; h: time step (s); rebars: rebar.Rebars
     or None. The bars are explicit, like the bulk: their forces need every ghost
     displacement, so with bars each step ends with a forward scatter of u. viscosity:
-    viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}).
+    viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}). strength:
+    interface/rate.RateStrength or None: the links' strengths at the bulk strain rate of
+    v_{n-1/2}, set before each interface solve.
     """
 
     STATE = ("u", "v", "t", "n", "work", "_u_n")  # what a checkpoint keeps
 
-    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None, viscosity=None):
+    def __init__(self, space, bulk, jump, step, load, pressure, h, rebars=None, viscosity=None, strength=None):
         self.space, self.bulk, self.jump, self.interface = space, bulk, jump, step
-        self.rebars, self.viscosity = rebars, viscosity
+        self.rebars, self.viscosity, self.strength = rebars, viscosity, strength
         self.model = step.model
         self.pressure, self.h = pressure, h
         V = space.V
@@ -118,7 +120,8 @@ class Imex:
         solver = ElasticSprings if problem.law.springs else step or StarNewton
         return cls(problem.space, problem.bulk, problem.jump, solver(problem.stars, problem.jump, model, m, h),
                    problem.load if load is None else load, pressure or problem.pressure, h, rebars=problem.rebars,
-                   viscosity=bulk_viscosity.build(problem.space, problem.domain, problem.case))
+                   viscosity=bulk_viscosity.build(problem.space, problem.domain, problem.case),
+                   strength=problem.rate_strength())
 
     def impose(self, comps, velocity):
         """Prescribe the velocity of supported components from now on: ``velocity(t)``
@@ -166,6 +169,8 @@ class Imex:
             dv[comps] = velocity(self.t + h / 2) - v[comps]
         if energies:
             g_n = self.jump(u)  # for the energy at the mid jump
+        if self.strength is not None:
+            self._set_strengths(v)
         self.interface.solve(f, u, v, dv)
         mine = dv[self.star_shared]
         timer.lap("interface")
@@ -194,6 +199,15 @@ class Imex:
             timer.lap("diagnostics")
             return result
         return None
+
+    def _set_strengths(self, v):
+        """The links' strengths at the strain rate of v_{n-1/2} (its ghosts made current:
+        a link's cells may hold another rank's vertices)."""
+        if self.space.mesh.comm.size > 1:
+            compat.scatter_forward(self.v)
+            self.timer.lap("communication")
+        self.interface.strengths_changed(self.strength.update(v, self.model))
+        self.timer.lap("interface")
 
     def _energies(self, Ku, g_mid):
         own = self.owned

@@ -150,6 +150,8 @@ class StarNewton:
         self._entry_cached = np.zeros(self.layout.n_stars, dtype=np.int8)
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
         self._data = None  # the link states and what _data_at gave at them
+        self._position = np.empty(len(links), dtype=np.int64)  # of each link in the layout
+        self._position[self.layout.links] = np.arange(len(links))
 
     def solve(self, f, u, v, out):
         """Velocity increments of every owned star into out[star comps].
@@ -236,8 +238,14 @@ class StarNewton:
         58 us of a 1.1 ms step), and after a step only its changed links are evaluated
         again (_refresh)."""
         if self._data is None or not np.array_equal(state, self._data[0]):
-            self._data = (state.copy(), self._link_data(state[self.layout.links]))
+            self._data = (state.copy(), self._link_data(state[self.layout.links], self.layout.links))
         return self._data[1]
+
+    def strengths_changed(self, links):
+        """The model changed the strength of the links ``links`` (indices into the rank's
+        links, interface/rate.py): their kernel data are evaluated again."""
+        if self._data is not None and len(links):
+            self._refresh(self._position[links])
 
     def _refresh(self, changed):
         """The kernel's per-link data after the star links ``changed`` took new states:
@@ -246,19 +254,22 @@ class StarNewton:
         links = self.layout.links[changed]
         state = self.model.state_at(links)
         known[links] = state
-        for array, values in zip(data, self._link_values(state)):
+        for array, values in zip(data, self._link_values(state, links)):
             array[changed] = values
         return data
 
-    def _link_data(self, state):
-        """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, one float array each."""
+    def _link_data(self, state, links):
+        """(mu, shift, cohesion_T, k_N, k_T) at the states ``state`` of the links ``links``,
+        one float array each."""
         n = len(state)
-        return tuple(np.array(np.broadcast_to(a, (n,)), dtype=float) for a in self._link_values(state))  # writable
+        return tuple(np.array(np.broadcast_to(a, (n,)), dtype=float) for a in self._link_values(state, links))
 
-    def _link_values(self, state):
-        """(mu, shift, cohesion_T, k_N, k_T) at the link states ``state``, as the model gives them."""
+    def _link_values(self, state, links):
+        """(mu, shift, cohesion_T, k_N, k_T) at the states ``state`` of the links ``links``,
+        as the model gives them."""
         model = self.model
-        return model.friction(state), model.shift(state), model.shear_cohesion(state), *model.secants(state)
+        return (model.friction(state, links), model.shift(state, links), model.shear_cohesion(state, links),
+                *model.secants(state, links))
 
     def _book_contact_work(self, shift, cohesion_T):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
