@@ -152,8 +152,12 @@ def toughness_warning(case):
             "(docs/materials.md)")
 
 
+def warn(line, comm):
+    """Print a warning line (or nothing for None) to stderr on rank 0."""
+    if line and comm.rank == 0:
+        print(line, file=sys.stderr)
+
+
 def report(case, comm):
-    """check(case) and toughness_warning(case), their warnings printed to stderr by rank 0."""
-    for warning in (check(case), toughness_warning(case)):
-        if warning and comm.rank == 0:
-            print(warning, file=sys.stderr)
+    """check(case), its warning printed to stderr by rank 0."""
+    warn(check(case), comm)

@@ -557,7 +557,11 @@ def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
             stale = [c.copy() for c in cache]
             stale[6][0] = star_kernel.STALE
             x_stale, _, counters = _solve(changed, geometry, new_link, stale)
-            if fresh[star_kernel.N_STALLED] or counters[star_kernel.N_STALLED] or (stale[4] != cache[4]).any():
+            # a random star that Newton cannot solve (stalled or unconverged: a run would stop
+            # on it) says nothing of the chord; measured with this machine's LAPACK, one of the
+            # 300 (seed 7, the 20th) does not converge from zero with its secants x 0.9999
+            unsolved = [star_kernel.N_STALLED, star_kernel.N_UNCONVERGED]
+            if fresh[unsolved].any() or counters[unsolved].any() or (stale[4] != cache[4]).any():
                 break
             # both below RTOL (1e-10) of the star's scale; 1e-8 leaves a factor 100 for conditioning
             assert np.allclose(x_stale, x_fresh, rtol=0, atol=1e-8 * np.abs(x_fresh).max())

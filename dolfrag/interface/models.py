@@ -387,10 +387,11 @@ class LinearSoftening(_Rigid):
         sigma_c, delta_c = self.sigma_c[links], self.delta_c(links)
         return np.maximum(OPENING_TOLERANCE * delta_c, sigma_c / (self.k_open[links] + sigma_c / delta_c))
 
-    def set_strength(self, sigma_c):
-        """Give the links that have not opened the strengths sigma_c (Pa, (n_links,));
-        returns the indices of the links whose strength changed."""
-        changed = np.flatnonzero((self.delta_max == 0) & (sigma_c != self.sigma_c))
+    def set_strength(self, sigma_c, step=0.0):
+        """Give the links that have not opened the strengths sigma_c (Pa, (n_links,)) where
+        they differ from their current ones by more than the relative ``step``; returns the
+        indices of the links whose strength changed."""
+        changed = np.flatnonzero((self.delta_max == 0) & (np.abs(sigma_c - self.sigma_c) > step * self.sigma_c))
         self.sigma_c[changed] = sigma_c[changed]
         return changed
 

@@ -29,6 +29,7 @@ def _check_converged(integ, comm):
         residual = comm.allreduce(integ.interface.residual, op=MPI.MAX)
         raise ConvergenceError(
             f"t = {integ.t:.6g} s (step {integ.n}): {stars} vertex star(s) did not converge in "
-            f"{integ.interface.max_iterations} Newton iterations (worst scaled residual {residual:.3g}, "
+            f"{integ.interface.max_iterations * max(integ.interface.escalation, 1)} Newton iterations (worst "
+            f"scaled residual {residual:.3g}, "
             f"tolerance {integ.interface.rtol:g}); the state is saved in failure.pvd, the stars in "
             f"failed_stars_rank<r>.npz (`dolfrag replay <file>` solves them again)")

@@ -64,6 +64,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
     wall_start = perf_counter()
     saved = checkpoint.load(out, comm) if resume else None
     problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
+    guards.warn(guards.toughness_warning(case), comm)  # once the mesh is known good: after bad input
     integ, stretch = prepare(problem)
     if saved is not None and saved["layout"] != _layout(problem):
         raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")

@@ -1,0 +1,163 @@
+"""Mesh convergence of the structural answers (docs/validation.md, "Mesh convergence").
+
+    python validation/convergence.py wall                       # wall-bending-clamped, h = 2, 1, 0.5 cm, 0.1 s
+    python validation/convergence.py panel                      # bunker-wall-panel, h = 0.1, 0.0667, 0.05 m, 20 ms
+    python validation/convergence.py wall --sizes 0.02 0.01 --end 0.04 --ranks 2
+    python validation/convergence.py wall --table-only          # the table of the runs already made
+
+Each study runs its case at each mesh size with concrete C30/37 from its class, once with
+linear softening and the fib Model Code 2010 rate factor, and once with the reference paper's
+coupling (interface.law = "rccm", w = sigma_c^2 / C_N, C_N = 10 E / h) at the same strength. Every run
+is a plain `dolfrag run` under mpirun into results/convergence/<study>/<law>-h<size>/; a run
+whose summary.json says "completed" is not made again, so the study can be stopped and taken
+up later. It prints a markdown table per law and, between the two finest meshes, the relative
+change of each quantity against the goal (10 %; the hazard distance: one ring width).
+
+Quantities (SI): first crack (s, the first link broken through), peak deflection (m, midspan
+of the wall, centre of the panel), energy dissipated by cracking and by contact and friction
+(J, J/m in 2D), crack length (m, 2D) or area (m^2, 3D): the facet area whose links are broken,
+loose pieces (not held by a support) and their mass (kg, kg/m in 2D); 3D also the median mass
+of a loose piece and the debris hazard distance (m, DDESB).
+"""
+import argparse
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+STUDIES = {
+    "wall": {"case": "wall-bending-clamped", "sizes": [0.02, 0.01, 0.005], "end": 0.1},
+    "panel": {"case": "bunker-wall-panel", "sizes": [0.1, 0.0667, 0.05], "end": 0.02},
+}
+# the reference paper's coupling at the same strength (the grade's f_ctm) and stiffness rule
+LAWS = {"linear_softening": ["interface.law=linear_softening", "interface.rate_effect=fib2010"],
+        "rccm": ["interface.law=rccm", "interface.rate_effect="]}
+HAZARD_RING = 1.0  # m, debris.ring_width's default: the hazard distance moves in these steps
+GOAL = 0.10
+
+
+def run_dir(out, law, size):
+    return out / f"{law}-h{size:g}"
+
+
+def run(case, law, size, end, ranks, out):
+    """One run (skipped when its summary says completed); returns its folder."""
+    folder = run_dir(out, law, size)
+    summary = folder / "summary.json"
+    if summary.is_file() and json.loads(summary.read_text()).get("status") == "completed":
+        return folder
+    sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *LAWS[law]]
+    dolfrag = Path(sys.executable).with_name("dolfrag")
+    command = ["mpirun", "-n", str(ranks), str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
+    command += [arg for item in sets for arg in ("--set", item)]
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
+    print(" ".join(command), flush=True)
+    subprocess.run(command, env=env, check=False)
+    return folder
+
+
+def _csv(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def measures(folder):
+    """The study's quantities of one finished (or stopped) run, from its output files."""
+    summary = json.loads((folder / "summary.json").read_text())
+    links = _csv(folder / "links.csv") if (folder / "links.csv").is_file() else []
+    broken = [row for row in links if row["broken"] in ("1", "True", "1.0")]
+    pieces = _csv(folder / "fragments.csv") if (folder / "fragments.csv").is_file() else []
+    loose = [row for row in pieces if row["held"] in ("0", "False", "0.0")]
+    mass_key = next((k for k in (pieces[0] if pieces else {}) if k.startswith("mass_kg")), None)
+    loose_mass = [float(row[mass_key]) for row in loose] if mass_key else []
+    energies = summary.get("energies_J", {})
+    deflection = (summary.get("wall") or {}).get("midspan_deflection") or {}
+    debris = summary.get("debris") or {}
+    return {"status": summary["status"], "cells": summary["cells"], "ranks": summary["ranks"],
+            "wall_time_s": summary.get("wall_time_s"),
+            "first_crack_s": min((float(r["break_time_s"]) for r in broken), default=float("nan")),
+            "peak_deflection_m": abs(deflection.get("peak_m", float("nan"))),
+            "dissipated_J": energies.get("D_damage_J", 0.0) + energies.get("D_contact_J", 0.0),
+            "crack_size": sum(float(r["weight"]) for r in broken),
+            "loose_pieces": len(loose), "loose_mass": sum(loose_mass),
+            "median_piece_mass": float(np.median(loose_mass)) if loose_mass else float("nan"),
+            "hazard_distance_m": debris.get("hazard_distance_m")}
+
+
+COLUMNS = [("cells", "cells", "{:,}"), ("first_crack_s", "first crack (ms)", "ms"),
+           ("peak_deflection_m", "peak deflection (mm)", "mm"), ("dissipated_J", "dissipated (J)", "{:.4g}"),
+           ("crack_size", "crack length (m) / area (m²)", "{:.4g}"), ("loose_pieces", "loose pieces", "{:,}"),
+           ("loose_mass", "their mass (kg)", "{:.4g}"), ("median_piece_mass", "median piece (kg)", "{:.3g}"),
+           ("hazard_distance_m", "hazard distance (m)", "{}"), ("wall_time_s", "wall time (s)", "{:.0f}")]
+COMPARED = ["peak_deflection_m", "dissipated_J", "crack_size"]
+
+
+def _cell(value, form):
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "–"
+    if form == "ms":
+        return f"{value * 1e3:.2f}"
+    if form == "mm":
+        return f"{value * 1e3:.2f}"
+    return form.format(value)
+
+
+def table(rows, three_d):
+    """A markdown table of the runs (size, measures) of one law."""
+    columns = [c for c in COLUMNS if three_d or c[0] not in ("median_piece_mass", "hazard_distance_m")]
+    lines = ["| h (m) | status | " + " | ".join(title for _, title, _ in columns) + " |",
+             "|---:|---|" + "---:|" * len(columns)]
+    for size, m in rows:
+        lines.append(f"| {size:g} | {m['status']} | " + " | ".join(_cell(m[key], form) for key, _, form in columns)
+                     + " |")
+    return "\n".join(lines)
+
+
+def verdict(rows):
+    """Between the two finest completed meshes: the relative change of each compared
+    quantity against GOAL, and the hazard distance's change against one ring."""
+    done = [(s, m) for s, m in rows if m["status"] == "completed"]
+    if len(done) < 2:
+        return "fewer than two completed meshes: no verdict"
+    (h1, a), (h2, b) = sorted(done)[:2]  # the finest two
+    parts = []
+    for key in COMPARED:
+        change = abs(a[key] - b[key]) / max(abs(a[key]), 1e-300)
+        parts.append(f"{key} {change:.1%} ({'within' if change <= GOAL else 'over'} {GOAL:.0%})")
+    if a["hazard_distance_m"] is not None and b["hazard_distance_m"] is not None:
+        moved = abs(a["hazard_distance_m"] - b["hazard_distance_m"])
+        parts.append(f"hazard distance {moved:g} m ({'within' if moved <= HAZARD_RING else 'over'} one ring)")
+    return f"h = {h1:g} against {h2:g} m: " + "; ".join(parts)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("study", choices=sorted(STUDIES))
+    parser.add_argument("--sizes", type=float, nargs="+", help="mesh sizes (m), default the study's")
+    parser.add_argument("--end", type=float, help="time.end (s), default the study's")
+    parser.add_argument("--laws", nargs="+", choices=sorted(LAWS), default=list(LAWS))
+    parser.add_argument("--ranks", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=Path("results/convergence"))
+    parser.add_argument("--table-only", action="store_true", help="tabulate the runs already made, run nothing")
+    args = parser.parse_args()
+    study = STUDIES[args.study]
+    sizes, end = args.sizes or study["sizes"], args.end or study["end"]
+    out = args.out / args.study
+    for law in args.laws:
+        rows = []
+        for size in sizes:
+            folder = run_dir(out, law, size) if args.table_only else run(study["case"], law, size, end,
+                                                                         args.ranks, out)
+            if (folder / "summary.json").is_file():
+                rows.append((size, measures(folder)))
+        print(f"\n### {study['case']}, interface.law = {law}, to {end:g} s\n")
+        print(table(rows, args.study == "panel"))
+        print("\n" + verdict(rows), flush=True)
+
+
+if __name__ == "__main__":
+    main()
