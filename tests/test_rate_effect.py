@@ -148,3 +148,18 @@ def test_rate_effect_gives_the_same_run_on_one_and_two_ranks(tmp_path):
     # the ranks sum energies in another order: round-off of the largest, the ends' work
     for key, value in one["energies_J"].items():
         assert two["energies_J"][key] == pytest.approx(value, rel=1e-8, abs=1e-9 * one["energies_J"]["W_external_J"])
+
+
+def test_a_stopped_run_with_the_rate_effect_resumes_bit_for_bit(tmp_path):
+    """The links' strengths (and what follows from them) are in the checkpoint: a run stopped
+    at step 30 and resumed ends as the uninterrupted run, history.csv to the last digit."""
+    from test_resume import dolfrag
+    args = ["run", "expanding-bar", "--quiet", "--set", "mesh.size=0.004", "--set", "output.fields=0",
+            "--set", "output.figures=false", "--set", "output.every=1", "--set", "interface.rate_effect=fib2010"]
+    assert dolfrag([*args, "--out", tmp_path / "whole"], 1).returncode == 0
+    assert dolfrag([*args, "--out", tmp_path / "stopped"], 1, stop_at=30).returncode == 143
+    assert dolfrag(["run", "--resume", tmp_path / "stopped", "--quiet"], 1).returncode == 0
+    whole, resumed = (json.loads((tmp_path / n / "summary.json").read_text()) for n in ("whole", "stopped"))
+    assert resumed["resumed_from_step"] == 30 and resumed["broken_links"] == whole["broken_links"] > 0
+    assert resumed["energies_J"] == whole["energies_J"]
+    assert (tmp_path / "whole" / "history.csv").read_text() == (tmp_path / "stopped" / "history.csv").read_text()

@@ -367,7 +367,8 @@ class LinearSoftening(_Rigid):
     energy; at the switch, the cohesive work done while rigid less the energy of the new
     secant is released."""
 
-    STATE = ("work", "released", "delta_max", "sprung", "sigma_c")  # what a checkpoint keeps
+    # what a checkpoint keeps (the strengths with what follows from them)
+    STATE = ("work", "released", "delta_max", "sprung", "sigma_c", "_delta_c", "_delta_open")
 
     def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf):
         super().__init__(n_links, mu)
@@ -377,15 +378,24 @@ class LinearSoftening(_Rigid):
         self.delta_max = np.zeros(n_links)
         self.sprung = np.zeros(n_links, dtype=bool)
         self.sigma_c = np.full(n_links, float(sigma_c))
+        self._delta_c, self._delta_open = np.empty(n_links), np.empty(n_links)
+        self._derive(slice(None))
+
+    def _derive(self, links):
+        """delta_c and delta_open of the links from their strengths (kept per link: the
+        step reads them on every link it refreshes)."""
+        sigma_c = self.sigma_c[links]
+        self._delta_c[links] = delta_c = 2 * self.G_c / sigma_c
+        self._delta_open[links] = np.maximum(OPENING_TOLERANCE * delta_c,
+                                             sigma_c / (self.k_open[links] + sigma_c / delta_c))
 
     def delta_c(self, links=slice(None)):
         """Opening at full separation 2 G_c / sigma_c (m) of the links."""
-        return 2 * self.G_c / self.sigma_c[links]
+        return self._delta_c[links]
 
     def delta_open(self, links=slice(None)):
         """Opening (m) past which the links leave their rigid constraint for their springs."""
-        sigma_c, delta_c = self.sigma_c[links], self.delta_c(links)
-        return np.maximum(OPENING_TOLERANCE * delta_c, sigma_c / (self.k_open[links] + sigma_c / delta_c))
+        return self._delta_open[links]
 
     def set_strength(self, sigma_c, step=0.0):
         """Give the links that have not opened the strengths sigma_c (Pa, (n_links,)) where
@@ -393,6 +403,7 @@ class LinearSoftening(_Rigid):
         indices of the links whose strength changed."""
         changed = np.flatnonzero((self.delta_max == 0) & (np.abs(sigma_c - self.sigma_c) > step * self.sigma_c))
         self.sigma_c[changed] = sigma_c[changed]
+        self._derive(changed)
         return changed
 
     def state_at(self, links):
