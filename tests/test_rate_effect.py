@@ -163,3 +163,18 @@ def test_a_stopped_run_with_the_rate_effect_resumes_bit_for_bit(tmp_path):
     assert resumed["resumed_from_step"] == 30 and resumed["broken_links"] == whole["broken_links"] > 0
     assert resumed["energies_J"] == whole["energies_J"]
     assert (tmp_path / "whole" / "history.csv").read_text() == (tmp_path / "stopped" / "history.csv").read_text()
+
+
+def test_a_structure_whose_crack_energy_follows_the_mesh_is_warned_once():
+    from dolfrag import guards
+    # the clamped wall with the paper's coupling: w = sigma_c^2 h / (10 E) = 0.91 J/m^2 at 2 cm
+    line = guards.toughness_warning(load_case("wall-bending-clamped"))
+    assert line.startswith("dolfrag: warning: ") and "w = sigma_c^2 / C_N = 0.914 J/m^2" in line
+    assert "G_F = 100-150 J/m^2" in line and "\n" not in line
+    graded = guards.toughness_warning(load_case("wall-bending-clamped", ["material.grade=C30/37"]))
+    assert "G_F = 141 J/m^2 for C30/37" in graded
+    # none for the Hopkinson bars (the paper calibrated the coupling on them), nor for a law
+    # with its own G_c
+    assert guards.toughness_warning(load_case("shpb-be16")) is None
+    assert guards.toughness_warning(load_case("wall-bending-clamped", [
+        "interface.law=linear_softening", "interface.G_c=140"])) is None

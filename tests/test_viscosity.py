@@ -101,3 +101,22 @@ def test_two_ranks_dissipate_the_same_energy(sharp, tmp_path):
 def test_the_switch_is_a_boolean():
     with pytest.raises(CaseError, match="material.bulk_viscosity = 'yes': must be true or false"):
         load_case("shpb-be16", ["material.bulk_viscosity='yes'"])
+
+
+def test_one_warning_when_the_viscosity_passes_five_per_cent_of_the_work(tmp_path, capsys):
+    # wall-scabbing's strip at 1 cm: its one-cell front rings, and the viscosity takes 23 % of
+    # the work by the end (measured); the warning comes once, when the share first passes 5 %
+    strip = ["geometry.length=0.2", "supports.clamped=[]", "supports.rollers=[\"left\", \"right\"]",
+             "mesh.size=0.01", "output.fields=0", "output.figures=false", "output.every=1"]
+    summary = run(load_case("wall-scabbing", strip), tmp_path / "on", quiet=True, comm=MPI.COMM_SELF)
+    energies = summary["energies_J"]
+    assert energies["D_viscous_J"] > 0.05 * energies["W_external_J"]
+    lines = [line for line in capsys.readouterr().err.splitlines() if "bulk viscosity" in line]
+    assert len(lines) == 1 and lines[0].startswith("dolfrag: warning: at t = ") and "of the external work" in lines[0]
+    share = float(lines[0].split(" J, ")[1].split("%")[0]) / 100
+    assert 0.05 <= share < 0.07  # the first row past 5 % (printed to 0.1 %; one step: < 2 % more)
+    # off, the same strip neither dissipates through it nor warns
+    off = run(load_case("wall-scabbing", [*strip, "material.bulk_viscosity=false"]), tmp_path / "off", quiet=True,
+              comm=MPI.COMM_SELF)
+    assert off["energies_J"]["D_viscous_J"] == 0.0
+    assert "bulk viscosity" not in capsys.readouterr().err
