@@ -3,6 +3,7 @@ interface/contact.py's Alart-Curnier residuals and each model's springs (interfa
 interface/laws.py), its Jacobian against finite differences, its LU, and the residual of
 every star it accepts in a run."""
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -731,3 +732,20 @@ def test_compiled_rccm_advance_is_trial_state_then_store(d, mu_i):
     np.testing.assert_array_equal(compiled.beta, generic.beta)
     np.testing.assert_array_equal(compiled.released, generic.released)
     assert len(links) // 10 < len(changed) < len(links) - len(links) // 10  # links that damage and links that do not
+
+
+@pytest.mark.parametrize("dump", sorted((Path(__file__).parent / "data" / "stalled_rings").glob("*.npz")),
+                         ids=lambda p: p.stem)
+def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
+    """Stars that stopped runs (dumps of `dolfrag run`: wall-bending-clamped with
+    rccm_decoupled and with linear softening, bunker-h2 with linear softening): rings of
+    rigid links around an interior vertex, pressed and sticking, whose reactions are
+    redundant around the ring. With the first pass's regularisation their Newton stalls
+    above GIVE_UP; the second pass of a step (semismooth.ESCALATION times the iterations,
+    SECOND_REGULARISATION) solves them to RTOL or accepts them within STALL."""
+    from dolfrag.solver import semismooth, star_replay
+    status, residual, _ = star_replay.replay(dump)
+    assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > star_kernel.GIVE_UP)
+    status, residual, _ = star_replay.replay(dump, regularisation=semismooth.SECOND_REGULARISATION,
+                                             max_iterations=semismooth.ESCALATION * int(np.load(dump)["max_iterations"]))
+    assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= star_kernel.STALL)

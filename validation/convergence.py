@@ -33,6 +33,8 @@ STUDIES = {
     "wall": {"case": "wall-bending-clamped", "sizes": [0.02, 0.01, 0.005], "end": 0.1},
     "panel": {"case": "bunker-wall-panel", "sizes": [0.1, 0.0667, 0.05], "end": 0.02},
 }
+# concrete C30/37 from its class whatever the case file gives (its E, rho and strength removed)
+CONCRETE = ["material.grade=C30/37", "material.E=", "material.rho=", "material.nu=", "interface.sigma_c="]
 # the reference paper's coupling at the same strength (the grade's f_ctm) and stiffness rule
 LAWS = {"linear_softening": ["interface.law=linear_softening", "interface.rate_effect=fib2010"],
         "rccm": ["interface.law=rccm", "interface.rate_effect="]}
@@ -50,7 +52,7 @@ def run(case, law, size, end, ranks, out):
     summary = folder / "summary.json"
     if summary.is_file() and json.loads(summary.read_text()).get("status") == "completed":
         return folder
-    sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *LAWS[law]]
+    sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law]]
     dolfrag = Path(sys.executable).with_name("dolfrag")
     command = ["mpirun", "-n", str(ranks), str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
     command += [arg for item in sets for arg in ("--set", item)]

@@ -52,11 +52,18 @@ from dolfrag.timing import PhaseTimer
 # Relative size below which a star's own scales give way to the step's largest (see solve).
 FLOOR = 1e-6
 # A step with a star unsolved after max_iterations solves it again (from the cache the first
-# pass left) with this many times the iterations, before the run stops. Measured
-# with linear softening in 3D: stars of 15-30 links, all in contact, that end 1.0-2.4e-6
-# above GIVE_UP after 100 iterations are accepted after 240-284 (bunker-h2 at 6.4 ms,
-# a reduced bunker at 22 us); a pass costs what the step cost, only on such steps.
+# pass left) with ESCALATION times the iterations and SECOND_REGULARISATION on the reaction
+# diagonal of its sticking links (star_kernel.REGULARISATION elsewhere), before the run
+# stops. What it solves: rings of rigid links around an interior vertex, pressed and
+# sticking, whose reactions are redundant around the ring (linear softening, decoupled
+# RCCM). At 1e-6 their Newton stalls at 1-7e-6 and stays there through 5,000 iterations;
+# at 1e-3 the same stars (dolfrag replay of the dumps: wall-bending-clamped at 38.9 ms,
+# 6 links; bunker-h2 at 6.95 and 7.43 ms, 15 links) converge or are accepted within STALL
+# after 45-90 iterations (1e-9: unconverged). As in theta's sub-steps
+# (NewtonOptions.cycle_regularisation), the residual stays exact: a larger regularisation
+# only slows the last digits down, which is why the first pass keeps 1e-6.
 ESCALATION = 10
+SECOND_REGULARISATION = 1e-3
 
 
 def step_stiffness(links, m, h, gdim):
@@ -189,13 +196,13 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
-        def solve_stars(cap):
+        def solve_stars(cap, regularisation=star_kernel.REGULARISATION):
             self._counters[:] = 0
             star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                     float(h), float(self.rtol), int(cap), bool(self.predict),
                                     float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
                                     self._gbar, self._slip, self.status, self.star_residual, self._counters,
-                                    self._entry_codes, self._entry_cached)
+                                    self._entry_codes, self._entry_cached, float(regularisation))
 
         solve_stars(self.max_iterations)
         if self._counters[N_UNCONVERGED] and self.escalation > 1:
@@ -231,7 +238,7 @@ class StarNewton:
                       (lay.fac_off, (lay.factors,)), (lay.piv_off, (lay.pivots,)),
                       (np.arange(lay.n_stars + 1), (self.status, self.star_residual, lay.cached))]
         saved = [[a.copy() for a in arrays] for _, arrays in by_offsets]
-        solve_stars(self.escalation * self.max_iterations)
+        solve_stars(self.escalation * self.max_iterations, SECOND_REGULARISATION)
         for (offsets, arrays), copies in zip(by_offsets, saved):
             rows = np.repeat(first_pass, np.diff(offsets))
             for array, copy in zip(arrays, copies):

@@ -395,13 +395,14 @@ def _evaluate(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, rhs, g_n
 
 @njit(cache=True, error_model="numpy")
 def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   position, n_c, A, C, scratch, at):
+                   position, n_c, A, C, scratch, at, regularisation):
     """The generalised Jacobian of (R_m, phi) at the point _evaluate last saw (its branch, e
     and code), added into the rows of the unknowns with position (N,) below n_c: entry
     (i, j) into A[position[i], position[j]] (n_c, n_c) where position[j] < n_c, else into
     C[position[i], position[j] - n_c]; the rows of the other unknowns, identity rows, are not
     stored. Frozen links have identity rows (see FROZEN); prescribed components identity
-    rows and zero columns; sticking links get REGULARISATION on their reaction diagonal.
+    rows and zero columns; sticking links get ``regularisation`` (REGULARISATION, or more in
+    a step's second pass) on their reaction diagonal.
     Each link's block (its two copies and its reactions) is formed in scratch (>= 12 d^2,)
     and then added where it goes (at (>= 3 d, int): its rows' and columns' positions): a
     helper call per entry, with its array arguments, cost six times the whole matrix
@@ -456,7 +457,7 @@ def _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu,
                 block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - P[i - 1, k - 1]
         if stick:
             for i in range(d):
-                block[2 * d + i, 2 * d + i] += REGULARISATION
+                block[2 * d + i, 2 * d + i] += regularisation
         for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
@@ -487,7 +488,7 @@ def _jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N,
     N = q + L * d
     J[:, :] = 0.0
     _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   np.arange(N), N, J, J[:, :0], scratch, np.empty(3 * d, dtype=np.int64))
+                   np.arange(N), N, J, J[:, :0], scratch, np.empty(3 * d, dtype=np.int64), REGULARISATION)
     return N
 
 
@@ -684,7 +685,7 @@ def unknown_orders(comp_off, link_off, slot_A, slot_B, d):
 
 @njit(cache=True, error_model="numpy")
 def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                    elimination, store, index, position, scratch):
+                    elimination, store, index, position, scratch, regularisation=REGULARISATION):
     """Factorise a star's Jacobian (_jacobian_into, arguments as there) with its unit rows set
     apart: an unknown whose row is that of the identity (an open link's normal row, a
     tangential row neither sticking nor slipping, a frozen link, a prescribed component) is
@@ -720,7 +721,7 @@ def factor_jacobian(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
     _jacobian_into(q, L, d, slot_A, slot_B, frame, w, rho, frozen, m, fixed, mu, k_N, k_T, h, code, branch, e,
-                   position[:N], n_c, A, C, scratch, position[N:])
+                   position[:N], n_c, A, C, scratch, position[N:], regularisation)
     lu_factor(A, index[1 + N:1 + N + n_c])
 
 
@@ -925,7 +926,8 @@ def gather_stars(comps, comp_off, link_off, slot_A, slot_B, frame, u, v, f, pres
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
-                x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached):
+                x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
+                regularisation=REGULARISATION):
     """Solve every star of the rank for this step.
 
     Per star component (flat over the stars, comp_off): mass (kg), fixed, rhs = h f (N s),
@@ -950,18 +952,21 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     an unconverged star only, what star_replay needs to start it as this call did: the pieces
     of its stored factors (entry_codes, per link) and what they were if it started from their
     prediction (entry_cached; NONE if it started from zero), and in ``factored`` the data
-    they were formed with.
+    they were formed with. ``regularisation``: on sticking links' reaction diagonals
+    (REGULARISATION; a step's second pass takes more, solver/semismooth.py).
     """
     if frame.shape[1] == 2:  # the dimension a compile-time constant: see _solve_stars
         _solve_stars(2, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
-                     x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached)
+                     x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
+                     regularisation)
     else:
         _solve_stars(3, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
-                     x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached)
+                     x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
+                     regularisation)
 
 
 @njit(cache=True, error_model="numpy")
@@ -994,7 +999,8 @@ def _keep_newton_factors(L, N, d, l0, held, held_store, held_index, held_code, f
 def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                  rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                  floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
-                 x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached):
+                 x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
+                 regularisation):
     """solve_stars in d dimensions, d a compile-time constant: the loops over the
     components of a link are then unrolled (measured on captured steps of the damaged bars:
     a 2D call 21.5 -> 18.4 ms, 3D 91.4 -> 87.5 ms)."""
@@ -1206,7 +1212,7 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
                                      work, nonzero)
             elif not (kind == EXACT and same):
                 factor_jacobian(q, L, d, sA, sB, fr, w, rh, fz, m, fx, mus, kNs, kTs, h, code, branch, e, order, store,
-                                index, position, scratch)
+                                index, position, scratch, regularisation)
                 scode[:] = code[:L]
                 if not held:
                     _note_factored(L, kNs, kTs, mus, factored[l0:l1])

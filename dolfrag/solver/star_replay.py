@@ -50,10 +50,11 @@ def dump(path, arrays, **context):
     np.savez(path, **arrays, **context)
 
 
-def replay(path, **change):
+def replay(path, regularisation=star_kernel.REGULARISATION, **change):
     """Solve the stars of the dump at ``path`` again, each alone, from the start the run gave
-    them; ``change`` overrides scalars (e.g. max_iterations). Returns (status, residual,
-    iterations) per star, star_kernel's status codes."""
+    them; ``change`` overrides scalars (e.g. max_iterations); regularisation: on sticking
+    links' reaction diagonals (a step's second pass takes semismooth.SECOND_REGULARISATION).
+    Returns (status, residual, iterations) per star, star_kernel's status codes."""
     data = dict(np.load(path))
     data.update(change)
     comp_off, link_off, d = data["comp_off"], data["link_off"], data["frame"].shape[1]
@@ -83,7 +84,7 @@ def replay(path, **change):
             np.array([0, N * N]), np.array([0, 2 * N + 1]), factors, pivots, star["codes"], star["slip_dir"],
             data["cached"][one].copy(), star["factored"].copy(), np.zeros(q), np.zeros((L, d)), np.zeros(q),
             np.zeros((L, d)), np.zeros((L, d)), status[one], residual[one], counters, np.zeros(L, np.int8),
-            np.zeros(1, np.int8))
+            np.zeros(1, np.int8), float(regularisation))
         iterations[s] = counters[star_kernel.ITERATIONS]
     return status, residual, iterations
 
