@@ -37,7 +37,6 @@ class RateStrength:
     STRENGTH_STEP) and returns the links whose strength changed."""
 
     def __init__(self, space, links, sigma_c):
-        d = space.gdim
         dof_cell = np.empty(space.cell_dofs.max(initial=-1) + 1, dtype=np.int64)
         dof_cell[space.cell_dofs] = np.arange(len(space.cell_dofs))[:, None]
         cells, local = np.unique(np.concatenate([dof_cell[links.dof_A], dof_cell[links.dof_B]]),
