@@ -28,7 +28,7 @@ MANUAL = [p for p in PAGES if DOCS / "notes" not in p.parents]
 
 
 def name(path):
-    return path.relative_to(ROOT).as_posix()
+    return path.relative_to(ROOT).as_posix() if ROOT in path.parents else str(path)
 
 
 # ---- headings and anchors ---------------------------------------------------------------
