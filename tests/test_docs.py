@@ -183,25 +183,10 @@ def references(page):
     return out
 
 
-# A reference another page's owner has to change; each entry must still be broken (strict), so
-# that it is taken off this list the day it is fixed.
-KNOWN_BROKEN = {
-    # the Hopkinson history (§4.0, Verdict) moved to docs/notes/hopkinson-history.md
-    ("docs/validation.md", "docs/hopkinson.md\n(§4.0"),
-}
-
-
 @pytest.mark.parametrize("page", PAGES, ids=name)
 def test_every_reference_resolves(page):
-    broken = [f"{name(page)}:{line}: {what!r}: {problem}" for line, what, problem in references(page)
-              if problem and (name(page), what) not in KNOWN_BROKEN]
+    broken = [f"{name(page)}:{line}: {what!r}: {problem}" for line, what, problem in references(page) if problem]
     assert not broken, "\n".join(broken)
-
-
-@pytest.mark.parametrize("page, what", sorted(KNOWN_BROKEN))
-def test_known_broken_references_are_still_broken(page, what):
-    found = [problem for _, w, problem in references(ROOT / page) if w == what]
-    assert found and all(found), f"{page}: {what!r} resolves now: take it off KNOWN_BROKEN"
 
 
 # ---- commits -----------------------------------------------------------------------------
