@@ -2,6 +2,7 @@
 
     dolfrag run CASE [--out DIR] [--overwrite] [--set section.key=value ...] [--quiet]
     dolfrag run --resume DIR [--quiet]
+    dolfrag report DIR
     dolfrag cases [NAME]
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
 
@@ -19,8 +20,15 @@ folder that is not empty (a run never mixes its files with another's) unless
 `run` checkpoints every output.checkpoint_every seconds of wall time and at the end;
 SIGINT or SIGTERM stop it at the end of the current step (checkpoint, summary.json with
 status "interrupted"), exit 130 or 143; `--resume DIR` continues it on as many ranks.
+A completed run is not resumed (exit 2). If a report or figure fails after the time loop,
+summary.json still holds what the loop produced, with status "report_failed" and the
+failing part named; the command exits 1 with one line (`--debug`: and the tracebacks,
+which the folder's report_errors.txt keeps). `report DIR` makes the reports of a run whose
+loop finished again from its last checkpoint, without recomputing (`run --resume` does the
+same for a run whose reports failed).
 """
 import argparse
+import json
 import signal
 import sys
 import traceback
@@ -30,7 +38,7 @@ from mpi4py import MPI
 
 from dolfrag import gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
-from dolfrag.run.driver import run
+from dolfrag.run.driver import REPORT_ERRORS, run
 from dolfrag.run.signals import EXIT_CODES
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
@@ -49,6 +57,11 @@ def _parser():
                      help="override a case parameter, e.g. --set mesh.size=0.004 (repeatable); "
                           "no value (--set time.dt=) removes it")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--debug", action="store_true", help="print the tracebacks of failed reports")
+    report = sub.add_parser("report", help="make the reports, figures and summary.json of a finished run again "
+                                           "from its checkpoint (same rank count)")
+    report.add_argument("dir", help="the run's output folder")
+    report.add_argument("--debug", action="store_true", help="print the tracebacks of failed reports")
     cases = sub.add_parser("cases", help="list built-in cases, or print one as TOML")
     cases.add_argument("name", nargs="?")
     plot = sub.add_parser("loads", help="plot a case's load signal p(t) to PNG, print peak and impulse")
@@ -137,9 +150,12 @@ def main(argv=None):
     if args.command == "run" and args.resume and (args.set or args.out or args.overwrite):
         parser.error("run --resume DIR: the case and its folder are the checkpoint's (no --set, --out, --overwrite)")
     try:
-        if args.command == "run" and args.resume:
-            summary = run(None, args.resume, quiet=args.quiet, comm=comm, resume=True)
-            return _report(summary, comm, args.quiet)
+        if args.command == "report" or (args.command == "run" and args.resume):
+            folder = args.dir if args.command == "report" else args.resume
+            _check_resumable(folder, remake=args.command == "report")
+            quiet = args.command == "report" or args.quiet  # a remade report has no steps to show
+            summary = run(None, folder, quiet=quiet, comm=comm, resume=True)
+            return _report(summary, folder, comm, quiet and args.command == "run", args.debug)
         if args.command == "replay":
             if comm.rank == 0:
                 print(star_replay.report(args.dump, args.max_iterations))
@@ -157,7 +173,7 @@ def main(argv=None):
         guards.check(case)  # refuse before emptying the folder
         outdir.prepare(out, args.overwrite, comm)
         summary = run(case, out, quiet=args.quiet, comm=comm)
-        return _report(summary, comm, args.quiet)
+        return _report(summary, out, comm, args.quiet, args.debug)
     except CaseError as err:
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)
@@ -175,14 +191,39 @@ def main(argv=None):
     return 0
 
 
-def _report(summary, comm, quiet):
-    """One line on a finished or interrupted run; the exit status (128 + signal when stopped)."""
+def _check_resumable(folder, remake):
+    """Refuse (CaseError) a `run --resume` of a completed run, and a `report` of a run whose
+    time loop has not finished, as its summary.json tells."""
+    path = Path(folder) / "summary.json"
+    summary = json.loads(path.read_text()) if path.is_file() else {}
+    finished = summary.get("steps") is not None and summary.get("steps_done") == summary["steps"]
+    if remake and not finished:
+        raise CaseError(f"report {folder}: its time loop has not finished ({path}: steps_done = "
+                        f"{summary.get('steps_done')!r} of steps = {summary.get('steps')!r}); continue it with "
+                        f"dolfrag run --resume {folder}")
+    if not remake and summary.get("status") == "completed":
+        raise CaseError(f"--resume {folder}: the run is already complete ({path}: status 'completed'); "
+                        f"dolfrag report {folder} makes its reports again")
+
+
+def _report(summary, folder, comm, quiet, debug):
+    """One line on a finished, interrupted or report-failed run; the exit status (128 +
+    signal when stopped, 1 when a report failed)."""
     if summary["status"] == "interrupted":
         if comm.rank == 0:
             print(f"dolfrag: {summary['signal']}: stopped at t = {summary['time_reached_s']:.6g} s (step "
                   f"{summary['steps_done']} of {summary['steps']}), checkpoint written; resume with: "
                   f"{summary['resume']}", file=sys.stderr)
         return EXIT_CODES[signal.Signals[summary["signal"]]]
+    if summary["status"] == "report_failed":
+        if comm.rank == 0:
+            errors = Path(folder) / REPORT_ERRORS
+            if debug:
+                print(errors.read_text(), file=sys.stderr)
+            print(f"dolfrag: error: the time loop completed but {len(summary['report_errors'])} report part(s) "
+                  f"failed, first {summary['report_errors'][0]}; summary.json has the rest (status "
+                  f"'report_failed'), {errors} the tracebacks; after a fix: dolfrag report {folder}", file=sys.stderr)
+        return 1
     if comm.rank == 0 and not quiet:
         print(f"{summary['case']['name']}: {summary['steps']} steps, {summary['cells']} cells, "
               f"{summary['links']} links, {summary['wall_time_s']:.1f} s on {summary['ranks']} rank(s); "

@@ -9,8 +9,8 @@ Each study runs its case at each mesh size with concrete C30/37 from its class, 
 linear softening and the fib Model Code 2010 rate factor, and once with the reference paper's
 coupling (interface.law = "rccm", w = sigma_c^2 / C_N, C_N = 10 E / h) at the same strength. Every run
 is a plain `dolfrag run` under mpirun into results/convergence/<study>/<law>-h<size>/; a run
-whose summary.json says "completed" is not made again, so the study can be stopped and taken
-up later. It prints a markdown table per law and, between the two finest meshes, the relative
+whose summary.json says "completed" is not made again, and one that says "interrupted" is
+resumed from its checkpoint, so the study can be stopped (SIGTERM) and taken up later. It prints a markdown table per law and, between the two finest meshes, the relative
 change of each quantity against the goal (10 %; the hazard distance: one ring width).
 
 Quantities (SI): first crack (s, the first link broken through), peak deflection (m, midspan
@@ -47,15 +47,22 @@ def run_dir(out, law, size):
 
 
 def run(case, law, size, end, ranks, out):
-    """One run (skipped when its summary says completed); returns its folder."""
+    """One run (skipped when its summary says completed, resumed from its checkpoint when
+    it says interrupted, on the same rank count); returns its folder."""
     folder = run_dir(out, law, size)
     summary = folder / "summary.json"
-    if summary.is_file() and json.loads(summary.read_text()).get("status") == "completed":
+    status = json.loads(summary.read_text()).get("status") if summary.is_file() else None
+    if status == "completed":
         return folder
-    sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law]]
     dolfrag = Path(sys.executable).with_name("dolfrag")
-    command = ["mpirun", "-n", str(ranks), str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
-    command += [arg for item in sets for arg in ("--set", item)]
+    if status == "interrupted":
+        ranks = json.loads(summary.read_text())["ranks"]
+        command = [str(dolfrag), "run", "--resume", str(folder), "--quiet"]
+    else:
+        sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law]]
+        command = [str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
+        command += [arg for item in sets for arg in ("--set", item)]
+    command = ["mpirun", "-n", str(ranks), *command]
     env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
     print(" ".join(command), flush=True)
     subprocess.run(command, env=env, check=False)

@@ -1,6 +1,7 @@
 """`run(case, out)`: build the problem, step it through the time loop with its observers,
 and write summary.json once, at the end (completed, failed or interrupted)."""
 import hashlib
+import traceback
 from pathlib import Path
 from time import perf_counter
 
@@ -27,6 +28,8 @@ from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 from dolfrag.solver.theta import Theta
 from dolfrag.stretch import Stretch
+
+REPORT_ERRORS = "report_errors.txt"  # the tracebacks of the parts of a run's end that failed
 
 
 def integrator(problem):
@@ -146,18 +149,56 @@ def _observers(ctx, resume_step):
 
 
 def _complete(ctx, output, fields, summary, summarising, reports):
-    """A completed run's end: fragments and links.csv, every block of summary.json (written
-    once, here), the figures. Collective."""
-    final = finish(ctx, output, fields.damage, summary["wall_time_s"], summary)
-    for observer in dict.fromkeys(summarising):  # each once, in order
-        if hasattr(observer, "summarise"):
-            observer.summarise(summary, final)
+    """A completed run's end: fragments and links.csv, every block of summary.json, the
+    figures. Each part runs guarded (_guarded): one that raises, on any rank, is named in
+    summary.json, whose status becomes "report_failed", and the parts after it still run.
+    summary.json is written before the figures, and again if one of them fails. Collective."""
+    failures = []
+    if ctx.comm.rank == 0:
+        (ctx.out / REPORT_ERRORS).unlink(missing_ok=True)  # a remade end starts clean
+    final = _guarded("fragments", lambda: finish(ctx, output, fields.damage, summary["wall_time_s"], summary),
+                     ctx, failures)
+    if final is not None:
+        for observer in dict.fromkeys(summarising):  # each once, in order
+            if hasattr(observer, "summarise"):
+                _guarded(f"{type(observer).__name__}.summarise", lambda: observer.summarise(summary, final),
+                         ctx, failures)
+    _settle(summary, failures)
     output.summary(summary)
-    if ctx.case.output.figures:
+    if ctx.case.output.figures and final is not None:
         folder = ctx.out / "figures"
-        common_figures(ctx, folder, final)
+        _guarded("figures", lambda: common_figures(ctx, folder, final), ctx, failures)
         for report in reports:
-            report.figures(folder, final)
+            _guarded(f"{type(report).__name__}.figures", lambda: report.figures(folder, final), ctx, failures)
+        if _settle(summary, failures):
+            output.summary(summary)
+
+
+def _guarded(name, action, ctx, failures):
+    """action()'s value; if it raised on any rank, None, "name: Error: message" (one line,
+    the first failing rank's) appended to ``failures`` and its traceback to REPORT_ERRORS in
+    the run's folder. Collective."""
+    try:
+        value, error = action(), None
+    except Exception as err:  # a report's bug must not cost the run: it is named instead
+        value, error = None, (f"{name}: {type(err).__name__}: {' '.join(str(err).split())}", traceback.format_exc())
+    error = next((e for e in ctx.comm.allgather(error) if e), None)
+    if error is None:
+        return value
+    failures.append(error[0])
+    if ctx.comm.rank == 0:
+        with open(ctx.out / REPORT_ERRORS, "a") as f:
+            f.write(error[1] + "\n")
+    return None
+
+
+def _settle(summary, failures):
+    """The status of a completed loop: "report_failed" if any part of its end failed.
+    Returns whether one did."""
+    summary["status"] = "report_failed" if failures else "completed"
+    if failures:
+        summary["report_errors"] = failures
+    return bool(failures)
 
 
 def _close(summary, history, integ, output, wall_time):
