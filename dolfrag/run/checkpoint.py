@@ -63,6 +63,21 @@ def restore_object(obj, state):
             setattr(obj, name, saved)
 
 
+class Rewind:
+    """The state of ``objects`` kept in memory at ``mark()`` and put back by ``restore()``:
+    the last completed step, for a step abandoned midway."""
+
+    def __init__(self, objects):
+        self.objects, self.states = objects, None
+
+    def mark(self):
+        self.states = [object_state(obj) for obj in self.objects]
+
+    def restore(self):
+        for obj, state in zip(self.objects, self.states):
+            restore_object(obj, state)
+
+
 def owner_rule(centroids, comm):
     """mesh.build's owner_rule giving each cell to the rank that owned it when the checkpoint
     was written (DOLFINx's graph partitioner may split the same mesh differently from one

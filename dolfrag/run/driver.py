@@ -100,7 +100,8 @@ def run(case, out, quiet=False, comm=None, resume=False):
         with stop:
             fields.start()
             try:
-                last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step)
+                last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step,
+                                 _rewind(integ, stop, stateful))
             except ConvergenceError:
                 output.failure(lambda vtk: fields.write(integ.t, vtk))  # the state, for a look
                 _dump_failed_stars(integ, out, comm)
@@ -121,6 +122,15 @@ def run(case, out, quiet=False, comm=None, resume=False):
         return summary
     _complete(ctx, output, fields, summary, [*rows[1:], *observers, *reports], reports)
     return summary
+
+
+def _rewind(integ, stop, stateful):
+    """For an integrator that can abandon a step (theta: ``interrupt``), hand it the stop
+    request and return the checkpoint.Rewind of what its step changes; else None."""
+    if not hasattr(integ, "interrupt"):
+        return None
+    integ.interrupt = stop.pending
+    return checkpoint.Rewind([stateful[name] for name in ("integrator", "model", "rebars", "stretch", "viscosity")])
 
 
 def _dump_failed_stars(integ, out, comm):

@@ -1,8 +1,10 @@
-"""SIGINT and SIGTERM stop a run at the end of the current step, on every rank together.
+"""SIGINT and SIGTERM stop a run on every rank together: at the end of the current step, or,
+for an integrator whose steps may take longer than a launcher waits after its SIGTERM
+(theta), within the step, which is abandoned (run/loop.py).
 
 A handler only raises a flag; the time loop reduces the flags of all ranks once a step
-(``Stop.requested``), so a signal that reaches one rank (mpirun, a batch scheduler) stops
-them all at the same step. ``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name)
+(``Stop.requested``), theta's Newton once an iteration (``Stop.pending``), so a signal that
+reaches one rank (mpirun, a batch scheduler) stops them all at the same point. ``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name)
 makes rank 0 send itself SIGTERM (that signal) after step N, before its checkpoint: a stop at a
 known step, for the tests of checkpoint and resume.
 """
@@ -38,6 +40,13 @@ class Stop:
 
     def _handle(self, signum, frame):
         self.signal = signal.Signals(signum)
+
+    def pending(self):
+        """Whether any rank got a signal. Collective."""
+        flag = self.comm.allreduce(0 if self.signal is None else int(self.signal), op=MPI.MAX)
+        if flag and self.signal is None:
+            self.signal = signal.Signals(flag)
+        return bool(flag)
 
     def requested(self, step, due):
         """(stop, checkpoint): whether any rank got a signal, and whether any rank's

@@ -52,6 +52,11 @@ class ConvergenceError(semismooth.ConvergenceError):
                          f"{reason}; scaled residual {residual:.3g} after {iterations} Newton iterations")
 
 
+class StepInterrupted(Exception):
+    """A step abandoned because ``Theta.interrupt`` said so: the integrator's state is partly
+    advanced, and the caller restores the one it kept from before the step."""
+
+
 class _NotConverged(Exception):
     def __init__(self, residual, iterations, reason):
         super().__init__(reason)
@@ -95,6 +100,10 @@ class Theta:
 
     # what a checkpoint keeps (a resumed run refactorises at its first step)
     STATE = ("u", "v", "t", "n", "work", "numerical", "r", "_g", "_x_last", "_h_last", "_depth", "_deepest", "_calm")
+    # None, or a collective callable asked before each Newton iteration (a stop request: a
+    # theta step may take minutes, more than a scheduler waits after its SIGTERM); True
+    # abandons the step with StepInterrupted
+    interrupt = None
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(), rebars=None,
                  options=NewtonOptions()):
@@ -206,6 +215,8 @@ class Theta:
         for iteration in range(1, cap + 1):
             if point.converged:
                 break
+            if self.interrupt is not None and self.interrupt():
+                raise StepInterrupted
             self.interface.iterations += 1
             if self._reusable(iteration, h, point):  # the factorisation in hand first
                 dx, dr = self.residual.correction(step, self._solve(point))
