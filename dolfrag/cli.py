@@ -4,6 +4,7 @@
     dolfrag run --resume DIR [--quiet]
     dolfrag report DIR
     dolfrag cases [NAME]
+    dolfrag --version
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
 
 `loads` plots the case's pressure p(t) over [0, time.end] (default PNG:
@@ -20,7 +21,8 @@ folder that is not empty (a run never mixes its files with another's) unless
 `run` checkpoints every output.checkpoint_every seconds of wall time and at the end;
 SIGINT or SIGTERM stop it at the end of the current step (checkpoint, summary.json with
 status "interrupted"), exit 130 or 143; `--resume DIR` continues it on as many ranks.
-A completed run is not resumed (exit 2). If a report or figure fails after the time loop,
+A stop while the outputs are made after the loop leaves the rest unmade, named in
+summary.json (status "interrupted", `missing_outputs`). A completed run is not resumed (exit 2). If a report or figure fails after the time loop,
 summary.json still holds what the loop produced, with status "report_failed" and the
 failing part named; the command exits 1 with one line (`--debug`: and the tracebacks,
 which the folder's report_errors.txt keeps). `report DIR` makes the reports of a run whose
@@ -36,7 +38,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfrag import gas, guards, loads, outdir
+from dolfrag import __version__, gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.run.driver import REPORT_ERRORS, run
 from dolfrag.run.signals import EXIT_CODES
@@ -47,6 +49,7 @@ from dolfrag.solver.semismooth import ConvergenceError
 def _parser():
     parser = argparse.ArgumentParser(prog="dolfrag", description="Fragmentation of concrete "
                                      "under dynamic loads (cohesive interfaces on every facet). SI units.")
+    parser.add_argument("--version", action="version", version=f"dolfrag {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a case")
     run.add_argument("case", nargs="?", help="case file (.toml) or built-in case name (see `dolfrag cases`)")
@@ -62,7 +65,7 @@ def _parser():
                                            "from its checkpoint (same rank count)")
     report.add_argument("dir", help="the run's output folder")
     report.add_argument("--debug", action="store_true", help="print the tracebacks of failed reports")
-    cases = sub.add_parser("cases", help="list built-in cases, or print one as TOML")
+    cases = sub.add_parser("cases", help="list the built-in cases with what each is for, or print one as TOML")
     cases.add_argument("name", nargs="?")
     plot = sub.add_parser("loads", help="plot a case's load signal p(t) to PNG, print peak and impulse")
     plot.add_argument("case", help="case file (.toml) or built-in case name")
@@ -123,6 +126,13 @@ def _h2_air_lines(numbers):
                                 for name, note in notes.items() if name in numbers])
 
 
+def _case_list():
+    """One line per built-in case: its name and its description."""
+    names = builtin_cases()
+    width = max(map(len, names))
+    return "\n".join(f"{name:<{width}}  {load_case(name).description}" for name in names)
+
+
 def _case_text(name):
     """A built-in case's TOML, followed by comment lines giving the values its strength
     class fills in and where each comes from (so the text stays a valid case file)."""
@@ -162,7 +172,7 @@ def main(argv=None):
             return 0
         if args.command == "cases":
             if comm.rank == 0:
-                print(_case_text(args.name) if args.name else "\n".join(builtin_cases()))
+                print(_case_text(args.name) if args.name else _case_list())
             return 0
         case = load_case(args.case, args.set)
         loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
@@ -209,6 +219,11 @@ def _check_resumable(folder, remake):
 def _report(summary, folder, comm, quiet, debug):
     """One line on a finished, interrupted or report-failed run; the exit status (128 +
     signal when stopped, 1 when a report failed)."""
+    if summary["status"] == "interrupted" and "missing_outputs" in summary:
+        if comm.rank == 0:
+            print(f"dolfrag: {summary['signal']}: stopped after the time loop, while making its outputs; not made: "
+                  f"{', '.join(summary['missing_outputs'])}; make them with: {summary['resume']}", file=sys.stderr)
+        return EXIT_CODES[signal.Signals[summary["signal"]]]
     if summary["status"] == "interrupted":
         if comm.rank == 0:
             print(f"dolfrag: {summary['signal']}: stopped at t = {summary['time_reached_s']:.6g} s (step "

@@ -2,7 +2,8 @@
 import pytest
 
 from conftest import dolfrag_cli
-from dolfrag.config import builtin_case_text, load_case
+import dolfrag
+from dolfrag.config import builtin_case_text, builtin_cases, load_case
 
 SMALL = ["--set", "mesh.size=0.01", "--set", "time.end=2e-6", "--set", "output.fields=0",
          "--set", "output.figures=false"]
@@ -25,13 +26,21 @@ def case_file(tmp_path, geometry, load):
     return path
 
 
-def test_cases_lists_the_built_ins_and_prints_one_that_loads(tmp_path):
+def test_cases_lists_the_built_ins_with_their_descriptions_and_prints_one_that_loads(tmp_path):
     listing = dolfrag_cli("cases")
-    assert listing.returncode == 0 and "sound-bar" in listing.stdout.split()
+    assert listing.returncode == 0
+    lines = dict(line.split(None, 1) for line in listing.stdout.splitlines())
+    assert list(lines) == builtin_cases()
+    assert all(lines[name] == load_case(name).description and lines[name] for name in lines)
     printed = dolfrag_cli("cases", "sound-bar")
     assert printed.returncode == 0
     (tmp_path / "copy.toml").write_text(printed.stdout)
     assert load_case(tmp_path / "copy.toml").material.E == 35e9
+
+
+def test_version():
+    result = dolfrag_cli("--version")
+    assert result.returncode == 0 and result.stdout.strip() == f"dolfrag {dolfrag.__version__}"
 
 
 def test_a_small_run_writes_its_outputs(tmp_path):

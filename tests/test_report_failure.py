@@ -3,10 +3,13 @@ with status "report_failed" naming it, the other reports and outputs are made, t
 exits 1 with one line, and `dolfrag report DIR` makes the reports again from the last
 checkpoint, without recomputing the loop."""
 import json
+import os
+import signal
 
 import pytest
 
 from dolfrag import cli
+from dolfrag.run import driver
 from dolfrag.run.reports.wall import WallReport
 
 # the wall section, 14 steps of the built-in case (about a second)
@@ -84,3 +87,25 @@ def test_report_refuses_a_loop_that_has_not_finished(tmp_path, monkeypatch, caps
     capsys.readouterr()
     assert cli.main(["report", str(out)]) == 2
     assert "has not finished" in capsys.readouterr().err
+
+
+def test_a_stop_while_the_figures_are_made_names_what_is_missing(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "late"
+    figures = driver.common_figures
+
+    def figures_then_sigterm(*args):
+        os.kill(os.getpid(), signal.SIGTERM)  # arrives while the common figures are drawn
+        return figures(*args)
+
+    monkeypatch.setattr(driver, "common_figures", figures_then_sigterm)
+    assert cli.main([*WALL, "--out", str(out)]) == 143
+    err = capsys.readouterr().err
+    summary = summary_of(out)
+    assert summary["status"] == "interrupted" and summary["signal"] == "SIGTERM"
+    assert summary["missing_outputs"] == ["WallReport.figures"]  # the part in progress finished
+    assert (out / "figures" / "damage.png").is_file() and not (out / "figures" / "deflection.png").exists()
+    assert "wall" in summary and "fragments" in summary  # made before the figures
+    assert err.count("\n") == 1 and "not made: WallReport.figures" in err and f"dolfrag report {out}" in err
+    monkeypatch.undo()
+    assert cli.main(["report", str(out)]) == 0
+    assert summary_of(out)["status"] == "completed" and (out / "figures" / "deflection.png").is_file()

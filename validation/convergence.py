@@ -4,6 +4,7 @@
     python validation/convergence.py panel                      # bunker-wall-panel, h = 0.1, 0.0667, 0.05 m, 20 ms
     python validation/convergence.py wall --sizes 0.02 0.01 --end 0.04 --ranks 2
     python validation/convergence.py wall --table-only          # the table of the runs already made
+    python validation/convergence.py wall --set load.peak=2e5 --out results/convergence-2bar   # below the resistance
 
 Each study runs its case at each mesh size with concrete C30/37 from its class, once with
 linear softening and the fib Model Code 2010 rate factor, and once with the reference paper's
@@ -46,7 +47,7 @@ def run_dir(out, law, size):
     return out / f"{law}-h{size:g}"
 
 
-def run(case, law, size, end, ranks, out):
+def run(case, law, size, end, ranks, out, extra=()):
     """One run (skipped when its summary says completed, resumed from its checkpoint when
     it says interrupted, on the same rank count); returns its folder."""
     folder = run_dir(out, law, size)
@@ -59,7 +60,7 @@ def run(case, law, size, end, ranks, out):
         ranks = json.loads(summary.read_text())["ranks"]
         command = [str(dolfrag), "run", "--resume", str(folder), "--quiet"]
     else:
-        sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law]]
+        sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law], *extra]
         command = [str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
         command += [arg for item in sets for arg in ("--set", item)]
     command = ["mpirun", "-n", str(ranks), *command]
@@ -152,6 +153,8 @@ def main():
     parser.add_argument("--ranks", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("results/convergence"))
     parser.add_argument("--table-only", action="store_true", help="tabulate the runs already made, run nothing")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                        help="a further override of every run (give its own --out)")
     args = parser.parse_args()
     study = STUDIES[args.study]
     sizes, end = args.sizes or study["sizes"], args.end or study["end"]
@@ -160,7 +163,7 @@ def main():
         rows = []
         for size in sizes:
             folder = run_dir(out, law, size) if args.table_only else run(study["case"], law, size, end,
-                                                                         args.ranks, out)
+                                                                         args.ranks, out, args.set)
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
         print(f"\n### {study['case']}, interface.law = {law}, to {end:g} s\n")

@@ -47,8 +47,8 @@ def prepare(problem):
     return integ, stretch
 
 
-def resume_command(out, comm):
-    return ("" if comm.size == 1 else f"mpirun -n {comm.size} ") + f"dolfrag run --resume {out}"
+def resume_command(out, comm, verb="run --resume"):
+    return ("" if comm.size == 1 else f"mpirun -n {comm.size} ") + f"dolfrag {verb} {out}"
 
 
 def run(case, out, quiet=False, comm=None, resume=False):
@@ -120,7 +120,11 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm))
         output.summary(summary)
         return summary
-    _complete(ctx, output, fields, summary, [*rows[1:], *observers, *reports], reports)
+    with stop:  # a stop while the reports are made leaves the rest to `dolfrag report`
+        _complete(ctx, output, fields, summary, [*rows[1:], *observers, *reports], reports, stop)
+    if summary["status"] == "interrupted":
+        summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm, "report"))
+        output.summary(summary)
     return summary
 
 
@@ -158,57 +162,66 @@ def _observers(ctx, resume_step):
     return history, rows, observers, reports, fields, output
 
 
-def _complete(ctx, output, fields, summary, summarising, reports):
-    """A completed run's end: fragments and links.csv, every block of summary.json, the
-    figures. Each part runs guarded (_guarded): one that raises, on any rank, is named in
-    summary.json, whose status becomes "report_failed", and the parts after it still run.
-    summary.json is written before the figures, and again if one of them fails. Collective."""
-    failures = []
-    if ctx.comm.rank == 0:
-        (ctx.out / REPORT_ERRORS).unlink(missing_ok=True)  # a remade end starts clean
-    final = _guarded("fragments", lambda: finish(ctx, output, fields.damage, summary["wall_time_s"], summary),
-                     ctx, failures)
+def _complete(ctx, output, fields, summary, summarising, reports, stop):
+    """A completed loop's end: fragments and links.csv, every block of summary.json, the
+    figures, each a part of an _End. summary.json is written before the figures, and again
+    if one of them failed or was not made. Collective."""
+    end = _End(ctx, stop)
+    final = end.part("fragments", lambda: finish(ctx, output, fields.damage, summary["wall_time_s"], summary))
     if final is not None:
         for observer in dict.fromkeys(summarising):  # each once, in order
             if hasattr(observer, "summarise"):
-                _guarded(f"{type(observer).__name__}.summarise", lambda: observer.summarise(summary, final),
-                         ctx, failures)
-    _settle(summary, failures)
+                end.part(f"{type(observer).__name__}.summarise", lambda: observer.summarise(summary, final))
+    end.settle(summary)
     output.summary(summary)
     if ctx.case.output.figures and final is not None:
         folder = ctx.out / "figures"
-        _guarded("figures", lambda: common_figures(ctx, folder, final), ctx, failures)
+        end.part("figures", lambda: common_figures(ctx, folder, final))
         for report in reports:
-            _guarded(f"{type(report).__name__}.figures", lambda: report.figures(folder, final), ctx, failures)
-        if _settle(summary, failures):
+            end.part(f"{type(report).__name__}.figures", lambda: report.figures(folder, final))
+        if end.settle(summary):
             output.summary(summary)
 
 
-def _guarded(name, action, ctx, failures):
-    """action()'s value; if it raised on any rank, None, "name: Error: message" (one line,
-    the first failing rank's) appended to ``failures`` and its traceback to REPORT_ERRORS in
-    the run's folder. Collective."""
-    try:
-        value, error = action(), None
-    except Exception as err:  # a report's bug must not cost the run: it is named instead
-        value, error = None, (f"{name}: {type(err).__name__}: {' '.join(str(err).split())}", traceback.format_exc())
-    error = next((e for e in ctx.comm.allgather(error) if e), None)
-    if error is None:
-        return value
-    failures.append(error[0])
-    if ctx.comm.rank == 0:
-        with open(ctx.out / REPORT_ERRORS, "a") as f:
-            f.write(error[1] + "\n")
-    return None
+class _End:
+    """The parts of a completed loop's end, each run guarded: one that raises, on any rank,
+    is named ("name: Error: message", one line, the first failing rank's; its traceback goes
+    to REPORT_ERRORS in the run's folder) and the parts after it still run; after a stop
+    request (SIGINT, SIGTERM) the parts left are not made, and named as missing."""
 
+    def __init__(self, ctx, stop):
+        self.ctx, self.stop, self.failures, self.missing = ctx, stop, [], []
+        if ctx.comm.rank == 0:
+            (ctx.out / REPORT_ERRORS).unlink(missing_ok=True)  # a remade end starts clean
 
-def _settle(summary, failures):
-    """The status of a completed loop: "report_failed" if any part of its end failed.
-    Returns whether one did."""
-    summary["status"] = "report_failed" if failures else "completed"
-    if failures:
-        summary["report_errors"] = failures
-    return bool(failures)
+    def part(self, name, action):
+        """action()'s value, or None if it failed or was not made. Collective."""
+        if self.missing or self.stop.pending():
+            self.missing.append(name)
+            return None
+        try:
+            value, error = action(), None
+        except Exception as err:  # a report's bug must not cost the run: it is named instead
+            value, error = None, (f"{name}: {type(err).__name__}: {' '.join(str(err).split())}",
+                                  traceback.format_exc())
+        error = next((e for e in self.ctx.comm.allgather(error) if e), None)
+        if error is None:
+            return value
+        self.failures.append(error[0])
+        if self.ctx.comm.rank == 0:
+            with open(self.ctx.out / REPORT_ERRORS, "a") as f:
+                f.write(error[1] + "\n")
+        return None
+
+    def settle(self, summary):
+        """The summary's status: "interrupted" (with ``missing_outputs``) if a stop left parts
+        unmade, "report_failed" (with ``report_errors``) if one failed, else "completed".
+        Returns whether the end is incomplete."""
+        summary["status"] = "interrupted" if self.missing else "report_failed" if self.failures else "completed"
+        for key, names in (("report_errors", self.failures), ("missing_outputs", self.missing)):
+            if names:
+                summary[key] = names
+        return bool(self.failures or self.missing)
 
 
 def _close(summary, history, integ, output, wall_time):
