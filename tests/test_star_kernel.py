@@ -449,8 +449,8 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
         args = calls[-1]
         (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _, rhs, x_in, g_n, dg, mu,
          shift, cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:26]
-        # x_out, r_out, status (counted from the end, before the regularisation)
-        x, r, status = args[-11], args[-10], args[-6]
+        # x_out, r_out, status (counted from the end, before the regularisation and todo)
+        x, r, status = args[-12], args[-11], args[-7]
         for s in range(lay.n_stars):
             p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
             if link_off[s + 1] == link_off[s]:

