@@ -12,6 +12,24 @@ from dolfrag.post.fragment_sizes import grady_count, mott_count
 BAR_OPACITY = 0.45
 
 
+def milliseconds(t):
+    """A time t (s) as every figure writes it: in ms, to three significant digits
+    (6.00 ms, 0.200 ms, 0.0800 ms, 125 ms)."""
+    ms = 1e3 * t
+    decimals = 2 if ms == 0 else max(0, 2 - int(np.floor(np.log10(abs(ms)))))
+    return f"{ms:.{decimals}f} ms"
+
+
+def figure_title(case_name, t):
+    """The head of a figure of a run's state: the case and its time t (s),
+    e.g. "wall-bending-clamped, t = 6.00 ms"."""
+    return f"{case_name}, t = {milliseconds(t)}"
+
+
+# the time axis of every figure: ms, as milliseconds() writes a time
+TIME_SCALE, TIME_UNIT = 1e3, "ms"
+
+
 def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=None):
     """Owned cells' corner coordinates (+ displacement, flat per dof component, + the
     cell's offset (n_owned_cells, gdim) if given) and per-dof values, gathered on rank 0
@@ -27,18 +45,21 @@ def _gather_broken_mesh(space, displacement, values, cell_offset=None, cells=Non
     return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
 
 
-def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None, note="", cells=None, view=None,
-                    ruler=False, rebars=None):
+def broken_mesh_png(space, u, values, path, label, title, scale=None, cell_offset=None, note="", cells=None,
+                    view=None, rebars=None, clim=None):
     """The broken (DG) mesh deformed by ``scale * u`` and coloured by ``values`` (n_dofs,),
-    one per local dof (e.g. the speed, or the damage). When ``scale`` is None the largest
-    displacement is drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m:
-    moves each owned cell as a whole (e.g. ``exploded``). cells (n_owned_cells,) bool: draw
-    only those (e.g. half a slab, so that the cut shows the cracks inside). view (3,): in 3D,
-    the direction from the body towards the camera, z up (default (1, 1, 1), isometric).
-    ruler: also the axes with their coordinates (m) and a scale bar of a round length.
-    rebars (rebar.Rebars): the bars drawn as black lines, deformed alike (those in ``cells``),
-    over concrete made translucent so that the bars inside it show. ``note`` is added to the
-    caption. Collective; rank 0 draws."""
+    one per local dof (e.g. the speed, or the damage), with the axes in m at round ticks, a
+    scale bar of a round length and a colour bar titled ``label`` (the quantity and its
+    unit) over ``clim`` (lo, hi): DAMAGE_RANGE, SIGNED (symmetric about 0, for a component)
+    or None (0 to the largest value). When ``scale`` is None the largest displacement is
+    drawn as 2 % of the body size. cell_offset (n_owned_cells, gdim) m: moves each owned
+    cell as a whole (e.g. ``exploded``). cells (n_owned_cells,) bool: draw only those (e.g.
+    half a slab, so that the cut shows the cracks inside). view (3,): in 3D, the direction
+    from the body towards the camera, z up (default (1, 1, 1), isometric). rebars
+    (rebar.Rebars): the bars drawn as black lines, deformed alike (those in ``cells``), over
+    concrete made translucent so that the bars inside it show. ``title`` (``figure_title``:
+    the case and the time) heads the figure, ``note`` follows the displacement scale below it.
+    Collective; rank 0 draws and returns the figure's ``contents`` (None elsewhere)."""
     d = space.gdim
     comm = space.mesh.comm
     umax = comm.allreduce(np.abs(u.x.array[:space.n_owned_dofs * d]).max(initial=0.0), op=MPI.MAX)
@@ -48,12 +69,12 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     data = _gather_broken_mesh(space, scale * u.x.array, values, cell_offset, cells)
     bars = None if rebars is None else _gather_bars(rebars, scale * u.x.array, cells, comm)
     if data is None:
-        return
+        return None
     try:
         import pyvista as pv
     except ImportError:
         print(f"pyvista is not installed: {path} not drawn (pip install pyvista)", file=sys.stderr)
-        return
+        return None
     # Off-screen through EGL directly: VTK would try an X server first and warn.
     os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     points, values = data
@@ -64,23 +85,34 @@ def broken_mesh_png(space, u, values, path, label, scale=None, cell_offset=None,
     cell_type = pv.CellType.TRIANGLE if nv == 3 else pv.CellType.TETRA
     grid = pv.UnstructuredGrid(conn, np.full(n_cells, cell_type, np.uint8), points)
     grid.point_data[label] = values
-    plotter = pv.Plotter(off_screen=True, window_size=(1200, 600))
-    plotter.add_mesh(grid, scalars=label, cmap="viridis", opacity=1.0 if bars is None else BAR_OPACITY,
-                     scalar_bar_args={"title": label, "vertical": False})
+    lo, hi = colour_range(values, clim)
+    lows, highs = np.array(grid.bounds[::2]), np.array(grid.bounds[1::2])
+    steps = tick_steps(highs[:d] - lows[:d]) + [1.0]  # 2D: z is 0
+    axes = [round_axis(a, b, step) for a, b, step in zip(lows, highs, steps)]
+    box, ticks = np.array([a[:2] for a in axes]), [a[2] for a in axes]
+    plotter = pv.Plotter(off_screen=True, window_size=window_size(box[:, 1] - box[:, 0], d))
+    plotter.add_mesh(grid, scalars=label, cmap="RdBu_r" if clim is SIGNED else "viridis", clim=(lo, hi),
+                     opacity=1.0 if bars is None else BAR_OPACITY,
+                     scalar_bar_args={"title": label, "vertical": True, "position_x": 0.86, "position_y": 0.2,
+                                      "width": 0.04, "height": 0.6, "fmt": "%.3g", "n_labels": 5,
+                                      "title_font_size": 14, "label_font_size": 12})
     if bars is not None and len(bars):
         ends = np.concatenate([bars, np.zeros((*bars.shape[:2], 3 - d))], axis=2).reshape(-1, 3)
         lines = np.column_stack([np.full(len(bars), 2), np.arange(2 * len(bars)).reshape(-1, 2)]).ravel()
         plotter.add_mesh(pv.PolyData(ends, lines=lines), color="black", line_width=2)
-    plotter.add_text(f"displacement x {scale:.3g}" + (f"; {note}" if note else ""), font_size=10)
+    caption = plotter.add_text(f"{title}\ndisplacement x {scale:.3g}" + (f"; {note}" if note else ""),
+                               position="upper_left", font_size=10)
     view = np.array([0.0, 0.0, 1.0] if d == 2 else (1.0, 1.0, 1.0) if view is None else view)
-    if ruler:
-        _ruler(plotter, pv, grid.bounds, view)
+    _ruler(plotter, pv, box, ticks, steps, view, d)
     if d == 2:
         plotter.view_xy()
     else:
         plotter.view_vector(view, viewup=(0.0, 0.0, 1.0))
+    _frame(plotter, box, d)
     plotter.screenshot(str(path))
+    drawn = contents(plotter, caption, label)
     plotter.close()
+    return drawn
 
 
 def _gather_bars(rebars, u, cells, comm):
@@ -99,21 +131,107 @@ def round_length(most):
     return max(f * power for f in (1, 2, 5) if f * power <= most * (1 + 1e-12))
 
 
-def _ruler(plotter, pv, bounds, view):
-    """Axes with coordinates (m) around ``bounds`` (xmin, xmax, ymin, ymax, zmin, zmax) and
-    a black scale bar a quarter of the largest extent long (rounded) along x, beside the body
-    on the camera's side (``view``: from the body towards the camera)."""
-    lo, hi = np.array(bounds[::2]), np.array(bounds[1::2])
-    plotter.show_bounds(xtitle="x (m)", ytitle="y (m)", ztitle="z (m)", location="outer", font_size=9, fmt="%.3g")
+def round_axis(lo, hi, step):
+    """An axis' limits (m) and its number of ticks: lo, hi widened outwards to multiples of
+    ``step`` (a body out by 1 % of a step, e.g. by its displacement, does not add one: the
+    box's line hides so little). VTK's cube axes then tick round values."""
+    first, last = np.floor(lo / step + 0.01), np.ceil(hi / step - 0.01)
+    return step * first, step * last, int(last - first) + 1
+
+
+def tick_steps(spans):
+    """Each axis' tick step (m): a round length (1, 2 or 5 x 10^k) at most a third of its
+    span and no less than a tenth of the largest span, so that a thin slab's axis does not
+    crowd its labels."""
+    largest = max(spans)
+    return [round_length(max(span / 3, largest / 10)) for span in spans]
+
+
+DAMAGE_RANGE = (0.0, 1.0)  # damage 1 - beta: intact to broken, whatever the run reached
+SIGNED = "signed"          # broken_mesh_png's clim for a component: symmetric about 0
+
+
+def colour_range(values, clim):
+    """The colour bar's (lo, hi): ``clim`` when given as a pair; for SIGNED, -m to m, else 0
+    to m, with m the largest |value| (1 for a field that is zero everywhere, where any range
+    would read 0 ... 0)."""
+    if clim is not None and clim is not SIGNED:
+        return tuple(clim)
+    largest = float(np.abs(values).max(initial=0.0)) or 1.0
+    return (-largest, largest) if clim is SIGNED else (0.0, largest)
+
+
+def window_size(extent, d):
+    """(width, height) px of a field figure: in 2D as tall as the box of ``extent`` (m) needs
+    beside the colour bar, between 450 and 900 px, so that a slender wall fills its width;
+    in 3D 1200 x 800."""
+    if d == 3:
+        return 1200, 800
+    return 1200, int(np.clip(900 * extent[1] / extent[0] + 260, 450, 900))
+
+
+def _ruler(plotter, pv, box, ticks, steps, view, d):
+    """Axes (m) around ``box`` (3, 2) with ``ticks`` (3,) labels each, ``steps`` (m) apart
+    (round_axis; a sum's rounding error at 0 written 0), and a black scale bar a
+    quarter of the box's largest extent long (rounded) along x: in 2D above the box's right
+    end, in 3D behind the body as the camera (``view``: from the body towards it) sees it."""
+    lo, hi = box[:, 0], box[:, 1]
+    plotter.show_bounds(bounds=box.ravel(), xtitle="x (m)", ytitle="y (m)", ztitle="z (m)", show_zaxis=d == 3,
+                        location="outer", font_size=12 if d == 3 else 10, use_2d=d == 2, fmt="%.4g",
+                        n_xlabels=ticks[0], n_ylabels=ticks[1], n_zlabels=ticks[2])
+    cube = plotter.renderer.cube_axes_actor
+    for axis, step in enumerate(steps[:d]):
+        labels = cube.GetAxisLabels(axis)
+        values = [float(labels.GetValue(k)) for k in range(labels.GetNumberOfValues())]
+        clean = pv.convert_string_array(np.array([f"{v if abs(v) > 1e-9 * step else 0.0:.4g}" for v in values]))
+        cube.SetAxisLabels(axis, clean)
     size = (hi - lo).max()
     length = round_length(0.25 * size)
-    near = np.where(view > 0, hi, lo)  # the corner nearest the camera
-    start = np.array([near[0] - length if view[0] > 0 else near[0], near[1] + np.sign(view[1] or -1) * 0.12 * size,
-                      near[2]])
+    if d == 2:
+        start = np.array([hi[0] - length, hi[1] + 0.06 * size, 0.0])
+    else:
+        near, far = np.where(view > 0, hi, lo), np.where(view > 0, lo, hi)  # the corners nearest, farthest
+        # behind the body, at the camera's height: above its silhouette, clear of the axes' labels
+        start = np.array([near[0] - length if view[0] > 0 else near[0],
+                          far[1] - np.sign(view[1] or -1) * 0.12 * size, near[2]])
     plotter.add_mesh(pv.Line(start, start + [length, 0.0, 0.0]), color="black", line_width=5)
-    plotter.add_point_labels([start + [length / 2, 0.0, 0.0]],
+    above = [0.0, 0.03 * size, 0.0] if d == 2 else [0.0, 0.0, 0.06 * size]  # the label clear of the bar
+    plotter.add_point_labels([start + [length / 2, 0.0, 0.0] + above],
                              [f"{length * 1e3:g} mm" if length < 1 else f"{length:g} m"],
                              font_size=14, point_size=1, shape=None, always_visible=True)
+
+
+def _frame(plotter, box, d):
+    """The camera: in 2D a parallel projection (a drawing) in which the axes' ``box`` (3, 2)
+    fills the width left of the colour bar, or the height below the caption; in 3D fitted
+    to everything drawn. Either way the picture is moved left, off the colour bar."""
+    if d == 2:
+        width, height = plotter.window_size
+        extent = box[:2, 1] - box[:2, 0]
+        plotter.enable_parallel_projection()
+        plotter.camera.focal_point = (*box[:2].mean(axis=1), 0.0)
+        plotter.camera.position = (*box[:2].mean(axis=1), 10.0 * extent.max())
+        # half the view's height (m): the box in 65 % of the width, or 55 % of the height
+        plotter.camera.parallel_scale = max(extent[0] / 0.65 * height / width, extent[1] / 0.55) / 2
+    else:
+        plotter.reset_camera()
+    plotter.camera.SetWindowCenter(0.12 if d == 2 else 0.08, 0.0)
+
+
+def contents(plotter, caption, label):
+    """What a field figure shows, read back from its actors: the caption, the colour bar
+    (title, lo, hi) and each axis' tick labels by its title."""
+    bar = plotter.scalar_bars[label]
+    axes = plotter.renderer.cube_axes_actor
+    ticks = {}
+    for i, (title, shown) in enumerate(((axes.GetXTitle(), axes.GetXAxisVisibility()),
+                                        (axes.GetYTitle(), axes.GetYAxisVisibility()),
+                                        (axes.GetZTitle(), axes.GetZAxisVisibility()))):
+        labels = axes.GetAxisLabels(i)
+        if shown:
+            ticks[title] = [labels.GetValue(k) for k in range(labels.GetNumberOfValues())]
+    return {"caption": caption.GetText(caption.UpperLeft),
+            "colour_bar": (bar.GetTitle(), *bar.GetLookupTable().GetRange()), "axes": ticks}
 
 
 def exploded(frags, fragment_of_cell, spread):
@@ -128,18 +246,17 @@ def exploded(frags, fragment_of_cell, spread):
 
 def signal_png(signal, t_end, path, comm, title=""):
     """The load's pressure p(t) (``signal``: Pa, a vectorised function of t in s) over
-    [0, t_end] s, drawn with matplotlib in MPa and µs (ms from t_end = 1 ms, s from 1 s).
+    [0, t_end] s, drawn with matplotlib in MPa and ms.
     Collective; rank 0 draws."""
     plt = _pyplot(comm, path)
     if plt is None:
         return
     t = np.linspace(0.0, t_end, 2001)
-    scale, unit = _time_unit(t_end)
     fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
-    ax.plot(scale * t, 1e-6 * signal(t))
-    ax.set_xlabel(f"time t ({unit})")
+    ax.plot(TIME_SCALE * t, 1e-6 * signal(t))
+    ax.set_xlabel(f"time t ({TIME_UNIT})")
     ax.set_ylabel("pressure p (MPa), > 0 pushes in")
-    ax.set_xlim(0.0, scale * t_end)
+    ax.set_xlim(0.0, TIME_SCALE * t_end)
     ax.set_ylim(bottom=min(0.0, ax.get_ylim()[0]))
     ax.set_title(title)
     ax.grid(alpha=0.3)
@@ -161,11 +278,6 @@ def _pyplot(comm, path):
     return plt
 
 
-def _time_unit(t_end):
-    """(scale, name) of the time axis: µs below 1 ms, ms below 1 s, else s."""
-    return (1e6, "µs") if t_end < 1e-3 else (1e3, "ms") if t_end < 1.0 else (1.0, "s")
-
-
 OFF_SCALE = 5.0  # deflection_png: an estimate this far above the run is cut at the run's scale
 
 
@@ -178,18 +290,17 @@ def deflection_png(t, w, sdof, path, comm, title="", cracked_at=None, estimate="
     plt = _pyplot(comm, path)
     if plt is None:
         return
-    scale, unit = _time_unit(max(t[-1], 1e-12))
     fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
-    ax.plot(scale * np.asarray(t), 1e3 * np.asarray(w), label="dolfrag (mean across the section)")
+    ax.plot(TIME_SCALE * np.asarray(t), 1e3 * np.asarray(w), label="dolfrag (mean across the section)")
     if sdof is not None:
         largest = np.abs(w).max(initial=0.0)
         off_scale = largest > 0 and np.abs(sdof[1]).max() > OFF_SCALE * largest
-        ax.plot(scale * sdof[0], 1e3 * sdof[1], "--", label=estimate + (" (off scale)" if off_scale else ""))
+        ax.plot(TIME_SCALE * sdof[0], 1e3 * sdof[1], "--", label=estimate + (" (off scale)" if off_scale else ""))
         if off_scale:
             ax.set_ylim(-1.1e3 * largest, 1.1e3 * largest)
     if cracked_at is not None:
-        ax.axvline(scale * cracked_at, color="k", lw=0.8, ls=":", label="first through-crack")
-    ax.set_xlabel(f"time t ({unit})")
+        ax.axvline(TIME_SCALE * cracked_at, color="k", lw=0.8, ls=":", label="first through-crack")
+    ax.set_xlabel(f"time t ({TIME_UNIT})")
     ax.set_ylabel("deflection (mm)")
     ax.set_title(title)
     ax.grid(alpha=0.3)
@@ -209,13 +320,12 @@ def wave_png(t, y, v, thickness, path, comm, title="", depths=100):
     grid = np.linspace(0.0, thickness, depths)
     order = [np.argsort(yk, kind="stable") for yk in y]
     image = np.array([np.interp(grid, yk[o], vk[o]) for yk, vk, o in zip(y, v, order)])
-    scale, unit = _time_unit(max(t[-1], 1e-12))
     fig, ax = plt.subplots(figsize=(7, 3.5), layout="constrained")
     limit = np.abs(image).max(initial=0.0) or 1.0
-    mesh = ax.pcolormesh(scale * np.asarray(t), 1e3 * grid, image.T, cmap="RdBu_r",
+    mesh = ax.pcolormesh(TIME_SCALE * np.asarray(t), 1e3 * grid, image.T, cmap="RdBu_r",
                          vmin=-limit, vmax=limit, shading="nearest")
     fig.colorbar(mesh, ax=ax, label="velocity across the wall (m/s)")
-    ax.set_xlabel(f"time t ({unit})")
+    ax.set_xlabel(f"time t ({TIME_UNIT})")
     ax.set_ylabel("depth across the thickness (mm)")
     ax.set_title(title)
     fig.savefig(path, dpi=120)

@@ -7,7 +7,8 @@ import numpy as np
 
 from dolfrag import loads
 from dolfrag.post import fragment_sizes, fragment_table
-from dolfrag.post.figures import broken_mesh_png, exploded, fragment_masses_png, signal_png
+from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, exploded, figure_title,
+                                  fragment_masses_png, signal_png)
 from dolfrag.post.output import dof_damage
 
 # velocity_x.png: each fragment moved off the body's centre by this share of its centroid
@@ -66,24 +67,23 @@ def common_figures(ctx, folder, final):
     load.png for a pressure load. Collective."""
     space, integ, case = ctx.space, ctx.integ, ctx.case
     v = integ.v.x.array.reshape(-1, space.gdim)
-    when = f"{case.name}, t = {integ.t * 1e6:.1f} us"
+    title = figure_title(case.name, integ.t)
+    apart = exploded(final.fragments, final.fragment_of_cell, EXPLODE)
     broken_mesh_png(space, integ.u, np.linalg.norm(v, axis=1), folder / "velocity.png", "velocity magnitude (m/s)",
-                    note=when, ruler=True)
-    broken_mesh_png(space, integ.u, v[:, 0], folder / "velocity_x.png", "velocity v_x (m/s)", scale=1.0,
-                    cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE),
-                    note=f"{when}; fragments moved apart by {EXPLODE:g} x their centroid offset")
-    broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)", note=when,
-                    ruler=True, rebars=ctx.problem.rebars if space.gdim == 3 else None)  # 2D: they lie in the mesh
+                    title)
+    broken_mesh_png(space, integ.u, v[:, 0], folder / "velocity_x.png", "velocity v_x (m/s)", title, scale=1.0,
+                    cell_offset=apart, clim=SIGNED,
+                    note=f"fragments moved apart by {EXPLODE:g} x their centroid offset")
+    broken_mesh_png(space, integ.u, final.damage.x.array, folder / "damage.png", "damage 1 - beta (-)", title,
+                    clim=DAMAGE_RANGE,
+                    rebars=ctx.problem.rebars if space.gdim == 3 else None)  # 2D: they lie in the mesh
     fragment_speed = np.zeros(len(space.x))
     fragment_speed[space.cell_dofs[:space.n_owned_cells]] = final.table.speed[final.fragment_of_cell][:, None]
-    broken_mesh_png(space, integ.u, fragment_speed, folder / "fragments.png", "fragment speed (m/s)", scale=1.0,
-                    cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE), ruler=True,
-                    view=fragments_view(final.table),
-                    note=f"{when}; each fragment coloured by its mean speed, "
-                         f"moved apart by {EXPLODE:g} x its centroid offset")
+    broken_mesh_png(space, integ.u, fragment_speed, folder / "fragments.png", "fragment speed (m/s)", title,
+                    scale=1.0, cell_offset=apart, view=fragments_view(final.table),
+                    note=f"each fragment coloured by its mean speed, moved apart by {EXPLODE:g} x its centroid offset")
     fragment_masses_png(final.table.mass[~final.table.held], final.summary["fragments"]["size_distribution"],
-                        folder / "fragment_masses.png", ctx.comm,
-                        f"fragments no support holds ({when})")
+                        folder / "fragment_masses.png", ctx.comm, f"fragments no support holds ({title})")
     if case.load.kind == "pressure":
         signal_png(loads.signal(case.load), case.time.end, folder / "load.png", ctx.comm,
                    f"load on '{case.load.boundary}' ({case.name})")

@@ -5,7 +5,7 @@ import numpy as np
 
 from dolfrag import bunker, loads
 from dolfrag.post import bunker as post
-from dolfrag.post.figures import broken_mesh_png, deflection_png
+from dolfrag.post.figures import DAMAGE_RANGE, broken_mesh_png, deflection_png, figure_title
 from dolfrag.post.wall import peak
 
 
@@ -59,5 +59,5 @@ class BunkerReport:
         centroid = space.x[space.cell_dofs[:space.n_owned_cells]].mean(axis=1)
         kept = (centroid[:, 2] < lay.room[1][2]) & (centroid[:, 1] > lay.room[0][1])
         broken_mesh_png(space, integ.u, final.damage.x.array, folder / "bunker.png", "damage 1 - beta (-)",
-                        cells=kept, view=(0.5, -1.0, 1.2), ruler=True, rebars=ctx.problem.rebars,
-                        note=f"{ctx.case.name}, t = {integ.t * 1e3:.3g} ms; roof and door wall left out")
+                        figure_title(ctx.case.name, integ.t), cells=kept, view=(0.5, -1.0, 1.2),
+                        rebars=ctx.problem.rebars, clim=DAMAGE_RANGE, note="roof and door wall left out")

@@ -6,7 +6,7 @@ from mpi4py import MPI
 from scipy.spatial import ConvexHull
 
 from dolfrag.post import debris
-from dolfrag.post.figures import debris_map_png
+from dolfrag.post.figures import debris_map_png, milliseconds
 from dolfrag.post.output import write_csv
 
 
@@ -56,4 +56,4 @@ class DebrisReport:
     def figures(self, folder, final):
         ctx = self.ctx
         debris_map_png(self.thrown, self.footprint, final.summary["debris"], folder / "debris_map.png", ctx.comm,
-                       f"where the fragments land ({ctx.case.name}, thrown at t = {ctx.integ.t * 1e6:.1f} us)")
+                       f"where the fragments land ({ctx.case.name}, thrown at t = {milliseconds(ctx.integ.t)})")

@@ -8,7 +8,8 @@ from mpi4py import MPI
 
 from dolfrag import analytic, loads
 from dolfrag.post import wall
-from dolfrag.post.figures import broken_mesh_png, deflection_png, exploded, wave_png
+from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
+                                  wave_png)
 from dolfrag.run.final import EXPLODE
 
 
@@ -110,16 +111,15 @@ class WallReport:
         v = integ.v.x.array.reshape(-1, space.gdim)
         across = "xyz"[section.thickness_axis]
         broken_mesh_png(space, integ.u, v[:, section.thickness_axis], folder / f"velocity_{across}.png",
-                        f"velocity v_{across} (m/s)", scale=1.0,
-                        cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE),
-                        note=f"fragments moved apart by {EXPLODE:g} x their centroid offset; "
-                             f"t = {integ.t * 1e3:.3g} ms")
+                        f"velocity v_{across} (m/s)", figure_title(name, integ.t), scale=1.0,
+                        cell_offset=exploded(final.fragments, final.fragment_of_cell, EXPLODE), clim=SIGNED,
+                        note=f"fragments moved apart by {EXPLODE:g} x their centroid offset")
         slab = bool(np.ndim(section.span))
         if slab:  # the half y < L_y / 2, seen from +y: the cut along the centre line shows the cracks inside
             centroid_y = space.x[space.cell_dofs[:space.n_owned_cells], 1].mean(axis=1)
             broken_mesh_png(space, integ.u, final.damage.x.array, folder / "slab.png", "damage 1 - beta (-)",
-                            cells=centroid_y < section.span[1] / 2, view=(0.4, 1.0, 0.35),
-                            note=f"half slab y < {section.span[1] / 2:g} m; t = {integ.t * 1e3:.3g} ms")
+                            figure_title(name, integ.t), cells=centroid_y < section.span[1] / 2,
+                            view=(0.4, 1.0, 0.35), clim=DAMAGE_RANGE, note=f"half slab y < {section.span[1] / 2:g} m")
         deflection_png(self.deflection[0], self.deflection[1], self._bending, folder / "deflection.png", comm,
                        f"{'centre' if slab else 'midspan'} deflection ({name})",
                        final.summary["wall"]["first_through_crack_s"],
