@@ -45,7 +45,12 @@ def test_the_colour_range_is_damages_0_to_1_a_components_symmetric_else_from_0()
 
 def is_round_ticks(labels):
     """Labels as written (no exponent, no long decimals) of equally spaced values, the step
-    1, 2, 2.5 or 5 x 10^k, every value a multiple of it."""
+    1, 2, 2.5 or 5 x 10^k, every value a multiple of it. In 3D an end label may be blank
+    (deliberately: left out where two axes meet at a corner), the ticks between all written."""
+    if labels and labels[0] == "":
+        labels = labels[1:]
+    if labels and labels[-1] == "":
+        labels = labels[:-1]
     values = np.array([float(x) for x in labels])
     step = np.diff(values)
     mantissa = step[0] / 10.0 ** np.floor(np.log10(step[0]) + 1e-9)

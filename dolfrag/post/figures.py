@@ -109,6 +109,8 @@ def broken_mesh_png(space, u, values, path, label, title, scale=None, cell_offse
     else:
         plotter.view_vector(view, viewup=(0.0, 0.0, 1.0))
     _frame(plotter, box, d)
+    if d == 3:
+        _unlabel_shared_corners(plotter, box, ticks)
     plotter.screenshot(str(path))
     drawn = contents(plotter, caption, label)
     plotter.close()
@@ -199,6 +201,60 @@ def _ruler(plotter, pv, box, ticks, steps, view, d):
     plotter.add_point_labels([start + [length / 2, 0.0, 0.0] + above],
                              [f"{length * 1e3:g} mm" if length < 1 else f"{length:g} m"],
                              font_size=14, point_size=1, shape=None, always_visible=True)
+
+
+# each corner's neighbours along x, y, z (corner i: bit 0 x, bit 1 y, bit 2 z at the box's high end)
+_NEIGHBOURS = [[i ^ 1, i ^ 2, i ^ 4] for i in range(8)]
+
+
+def outer_edges(corners):
+    """The box edges VTK's cube axes draw in their "outer" fly mode (FindBoundaryEdge), from
+    the box's 8 corners in display coordinates ``corners`` (8, 3): px and depth, corner i at
+    the high end of x if bit 0 of i, of y if bit 1, of z if bit 2. Returns {axis: (i, j)}:
+    for each axis the two corners of its edge."""
+    pts = np.asarray(corners, float)
+    start = int(np.argmin(pts[:, 0] ** 2 + pts[:, 1] ** 2))  # nearest the viewport's lower left
+    first, slope, least = 0, 0.0, np.inf
+    for i, n in enumerate(_NEIGHBOURS[start]):  # the flattest edge to the right
+        num, den = pts[n, 1] - pts[start, 1], pts[n, 0] - pts[start, 0]
+        slope = num / den if den != 0.0 else slope
+        if slope < least and den > 0:
+            first, least = i, slope
+    ends = [_NEIGHBOURS[start][(first + k) % 3] for k in range(3)]
+    e1, e2, e3 = (pts[n] - pts[start] for n in ends)
+    e1, e2, e3 = (e / (np.linalg.norm(e) or 1.0) for e in (e1, e2, e3))
+    second, other = ((first + 1) % 3, ends[1]) if e1 @ e2 < e1 @ e3 else ((first + 2) % 3, ends[2])
+    third = 3 - first - second
+    a, b = _NEIGHBOURS[ends[0]][third], _NEIGHBOURS[other][third]
+    base = ends[0] if pts[a, 2] < pts[b, 2] else other
+    return {first: (start, ends[0]), second: (start, other), third: (base, _NEIGHBOURS[base][third])}
+
+
+def _unlabel_shared_corners(plotter, box, ticks):
+    """In 3D, two axes drawn from one corner of the box would write their end labels over
+    each other there ("1" beside "1"): at each such corner the label of the axis with more
+    ticks (y before x before z on a tie) is left blank, its tick still drawn. Call with the
+    camera set, before the screenshot."""
+    renderer = plotter.renderer
+    plotter.render()  # the viewport's aspect, as the cube axes see it
+    corners = []
+    for i in range(8):
+        renderer.SetWorldPoint(*(box[k, (i >> k) & 1] for k in range(3)), 1.0)
+        renderer.WorldToDisplay()
+        corners.append(renderer.GetDisplayPoint())
+    edges = outer_edges(corners)
+    cube = renderer.cube_axes_actor
+    labels = [cube.GetAxisLabels(k) for k in range(3)]
+    for corner in set(edges[0]) | set(edges[1]) | set(edges[2]):
+        meeting = [k for k in range(3) if corner in edges[k]]
+        if len(meeting) < 2:
+            continue
+        axis = max(meeting, key=lambda k: (ticks[k], (1, 0, -1)[k]))
+        end = (corner >> axis) & 1  # the axis' last tick at the high end, its first at the low
+        labels[axis].SetValue(labels[axis].GetNumberOfValues() - 1 if end else 0, "")
+        labels[axis].Modified()
+    for k in range(3):
+        cube.SetAxisLabels(k, labels[k])
 
 
 def _frame(plotter, box, d):
