@@ -22,8 +22,8 @@ folder that is not empty (a run never mixes its files with another's) unless
 SIGINT or SIGTERM stop it at the end of the current step (checkpoint, summary.json with
 status "interrupted"), exit 130 or 143; `--resume DIR` continues it on as many ranks.
 A stop while the outputs are made after the loop leaves the rest unmade, named in
-summary.json (status "interrupted", `missing_outputs`). A completed run is not resumed (exit 2). If a report or figure fails after the time loop,
-summary.json still holds what the loop produced, with status "report_failed" and the
+summary.json (status "interrupted", `missing_outputs`). A completed run is not resumed
+(exit 2). If a report or figure fails after the time loop, summary.json still holds what the loop produced, with status "report_failed" and the
 failing part named; the command exits 1 with one line (`--debug`: and the tracebacks,
 which the folder's report_errors.txt keeps). `report DIR` makes the reports of a run whose
 loop finished again from its last checkpoint, without recomputing (`run --resume` does the

@@ -1,5 +1,5 @@
-"""A one-line progress bar on rank 0 (stderr), silent when quiet: steps, simulated time and
-what the caller adds, wall time so far and left."""
+"""A one-line progress bar of a run on rank 0 (stderr), silent when quiet: steps, simulated
+time and broken links, wall time so far and left."""
 import sys
 import time
 
@@ -19,15 +19,17 @@ class Progress:
     the first step of a run (or of a resumed one) carries one-time costs (compiled kernels
     loaded, the first factorisation) that would inflate it tenfold and more."""
 
-    def __init__(self, total, quiet=False, rank=0, label="steps"):
-        self.total, self.label = total, label
+    def __init__(self, total, quiet=False, rank=0):
+        self.total = total
         self.on = not quiet and rank == 0
         self.start = time.perf_counter()
         self.first = None  # (steps done, time) at the first update
         self.shown = -10
         self.tty = sys.stderr.isatty()
 
-    def update(self, done, note=""):
+    def update(self, done, t, broken):
+        """After step ``done``, at time t (s), with ``broken`` links broken (the last history
+        row's); the line is formatted only when it is drawn (at most 100 times a run)."""
         if not self.on:
             return
         now = time.perf_counter()
@@ -42,8 +44,8 @@ class Progress:
         left = clock((now - time_0) * (self.total - done) / (done - done_0)) + " left" if done > done_0 \
             else "estimating"
         bar = "#" * (percent // 4)
-        sys.stderr.write(("\r" if self.tty else "") + f"[{bar:<25}] {percent:3d}% {done}/{self.total} {self.label}"
-                         f"{', ' + note if note else ''}; {clock(now - self.start)}, {left}   ")
+        sys.stderr.write(("\r" if self.tty else "") + f"[{bar:<25}] {percent:3d}% {done}/{self.total} steps, "
+                         f"t = {t:.4g} s, {broken:,} links broken; {clock(now - self.start)}, {left}   ")
         if done == self.total or not self.tty:
             sys.stderr.write("\n")
         sys.stderr.flush()

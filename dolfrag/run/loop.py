@@ -48,7 +48,7 @@ def time_loop(ctx, observers, rows, output, stop, save, progress, first_step=0, 
             values = [value for row in rows for value in row.values(step)]
             output.row(values)
             broken = values[broken_column]
-        progress.update(k, f"t = {integ.t:.4g} s, {broken:,} links broken")
+        progress.update(k, integ.t, broken)
         integ.timer.lap("output")
         stopping, due = stop.requested(k, perf_counter() - saved_at >= interval)
         if stopping or due or k == n_steps:

@@ -4,8 +4,8 @@ for an integrator whose steps may take longer than a launcher waits after its SI
 
 A handler only raises a flag; the time loop reduces the flags of all ranks once a step
 (``Stop.requested``), theta's Newton once an iteration (``Stop.pending``), so a signal that
-reaches one rank (mpirun, a batch scheduler) stops them all at the same point. ``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name)
-makes rank 0 send itself SIGTERM (that signal) after step N, before its checkpoint: a stop at a
+reaches one rank (mpirun, a batch scheduler) stops them all at the same point.
+``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name) makes rank 0 send itself SIGTERM (that signal) after step N, before its checkpoint: a stop at a
 known step, for the tests of checkpoint and resume.
 """
 import os
@@ -43,16 +43,17 @@ class Stop:
 
     def pending(self):
         """Whether any rank got a signal. Collective."""
-        flag = self.comm.allreduce(0 if self.signal is None else int(self.signal), op=MPI.MAX)
-        if flag and self.signal is None:
-            self.signal = signal.Signals(flag)
-        return bool(flag)
+        return self._agree(False)[0]
 
     def requested(self, step, due):
         """(stop, checkpoint): whether any rank got a signal, and whether any rank's
         ``due`` (a checkpoint's wall-time interval has passed) is set. Collective."""
         if step == self._send_at:
             os.kill(os.getpid(), self._send)
+        return self._agree(due)
+
+    def _agree(self, due):
+        """(any rank's signal, any rank's ``due``), the signal kept on every rank. Collective."""
         flags = np.array([0 if self.signal is None else int(self.signal), int(due)])
         self.comm.Allreduce(MPI.IN_PLACE, flags, op=MPI.MAX)
         if flags[0] and self.signal is None:

@@ -161,6 +161,7 @@ class StarNewton:
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
+        self._every_star = np.ones(self.layout.n_stars, dtype=np.bool_)  # the first pass's todo
         self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
         self._entry_cached = np.zeros(self.layout.n_stars, dtype=np.int8)
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
@@ -196,7 +197,7 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
-        def solve_stars(cap, regularisation=star_kernel.REGULARISATION, todo=None):
+        def solve_stars(cap, todo, regularisation=star_kernel.REGULARISATION):
             self._counters[:] = 0
             star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
                                     float(h), float(self.rtol), int(cap), bool(self.predict),
@@ -204,7 +205,7 @@ class StarNewton:
                                     self._gbar, self._slip, self.status, self.star_residual, self._counters,
                                     self._entry_codes, self._entry_cached, float(regularisation), todo)
 
-        solve_stars(self.max_iterations)
+        solve_stars(self.max_iterations, self._every_star)
         if self._counters[N_UNCONVERGED] and self.escalation > 1:
             self._solve_unconverged_again(solve_stars)
         out[lay.comps] = self._x
@@ -235,8 +236,8 @@ class StarNewton:
         on its own data alone (measured on the cracking bunker-wall-panel, 2,012 stars, one
         unconverged: the second pass over all stars took 12.8 s)."""
         first = self._counters.copy()
-        solve_stars(self.escalation * self.max_iterations, SECOND_REGULARISATION,
-                    self.status == star_kernel.UNCONVERGED)
+        solve_stars(self.escalation * self.max_iterations, self.status == star_kernel.UNCONVERGED,
+                    SECOND_REGULARISATION)
         self._counters[ITERATIONS] = max(first[ITERATIONS], self._counters[ITERATIONS])
         self._counters[N_FIRST] += first[N_FIRST]
         self._counters[N_UNCONVERGED] = np.count_nonzero(self.status == star_kernel.UNCONVERGED)
