@@ -17,8 +17,6 @@ from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, colour_
 from dolfrag.run import final
 from dolfrag.run.driver import run
 
-pytest.importorskip("pyvista")
-
 
 def test_a_time_is_written_in_ms_to_three_significant_digits():
     assert [milliseconds(t) for t in (6e-3, 2e-4, 8e-5, 5e-6, 0.125, 1.5, 0.0)] == \

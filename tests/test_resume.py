@@ -188,6 +188,7 @@ def test_a_stop_within_a_slow_theta_step_checkpoints_the_last_completed_step_and
     took = time.perf_counter() - sent
     summary = json.loads((out / "summary.json").read_text())  # written before the launcher's kill
     assert summary["status"] == "interrupted" and summary["signal"] == "SIGTERM", err
+    # back to the end of step 1: t = time.dt (1.5e-6 s) up to the round-off of one addition
     assert summary["steps_done"] == 1 and summary["time_reached_s"] == pytest.approx(1.5e-6, rel=1e-12)
     assert "resume with" in err
     # the ranks get the signal KILL_WAIT s after mpirun, and stopped before the kill
