@@ -2,6 +2,7 @@
 interface/contact.py's Alart-Curnier residuals and each model's springs (interface/models.py,
 interface/laws.py), its Jacobian against finite differences, its LU, and the residual of
 every star it accepts in a run."""
+import inspect
 import itertools
 from pathlib import Path
 
@@ -449,8 +450,8 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
         args = calls[-1]
         (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _, rhs, x_in, g_n, dg, mu,
          shift, cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:26]
-        # x_out, r_out, status (counted from the end, before the regularisation and todo)
-        x, r, status = args[-12], args[-11], args[-7]
+        named = dict(zip(inspect.signature(solve.py_func).parameters, args))
+        x, r, status = named["x_out"], named["r_out"], named["status"]
         for s in range(lay.n_stars):
             p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
             if link_off[s + 1] == link_off[s]:
@@ -487,14 +488,25 @@ def _kernel_args(star):
     return geometry, link, cache
 
 
-def _solve(star, geometry, link, cache):
+def _solve(star, geometry, link, cache, abort=None):
     """One kernel call on the star: (x, r, counters)."""
     q, L, d = star["q"], star["L"], star["d"]
     x, r, counters = np.zeros(q), np.zeros((L, d)), np.zeros(4, np.int64)
     star_kernel.solve_stars(*geometry, star["rhs"], np.zeros(q), *link, star["h"], star_kernel.RTOL, 100, True, 0.0,
                             0.0, *cache, x, r, np.zeros(q), np.zeros((L, d)), np.zeros((L, d)), np.zeros(1, np.int8),
-                            np.zeros(1), counters, np.zeros(L, np.int8), np.zeros(1, np.int8))
+                            np.zeros(1), counters, np.zeros(L, np.int8), np.zeros(1, np.int8), abort=abort)
     return x, r, counters
+
+
+def test_a_stop_flag_set_returns_before_any_star_is_solved():
+    """The flag of a stop request (solver/interrupt.py) set: the kernel returns at once and
+    leaves every output as it was (the step is abandoned); cleared, it solves the star."""
+    star = _star(np.random.default_rng(2), 3)
+    geometry, link, cache = _kernel_args(star)
+    x, r, counters = _solve(star, geometry, link, cache, abort=np.ones(1, np.int8))
+    assert not counters.any() and not x.any() and not r.any() and not cache[6].any()
+    x, r, counters = _solve(star, geometry, link, cache, abort=np.zeros(1, np.int8))
+    assert counters[star_kernel.ITERATIONS] > 0 and x.any()
 
 
 def _solved_from_zero(seed, d, tries):

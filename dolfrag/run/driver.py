@@ -20,7 +20,7 @@ from dolfrag.run.fields import FieldSnapshots
 from dolfrag.run.final import common_figures, finish
 from dolfrag.run.fragment_times import RequestedFragments
 from dolfrag.run.history import History, Probes, RebarForce
-from dolfrag.run.loop import time_loop
+from dolfrag.run.loop import Guard, time_loop
 from dolfrag.run.reports import REPORTS
 from dolfrag.run.signals import Stop
 from dolfrag.solver.imex import Imex
@@ -101,7 +101,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
             fields.start()
             try:
                 last = time_loop(ctx, observers, rows, output, stop, save, progress, first_step,
-                                 _rewind(integ, stop, stateful))
+                                 _guard(integ, stop, stateful))
             except ConvergenceError:
                 output.failure(lambda vtk: fields.write(integ.t, vtk))  # the state, for a look
                 _dump_failed_stars(integ, out, comm)
@@ -128,13 +128,13 @@ def run(case, out, quiet=False, comm=None, resume=False):
     return summary
 
 
-def _rewind(integ, stop, stateful):
-    """For an integrator that can abandon a step (theta: ``interrupt``), hand it the stop
-    request and return the checkpoint.Rewind of what its step changes; else None."""
+def _guard(integ, stop, stateful):
+    """For an integrator that can abandon a step (its ``interrupt``), the loop.Guard of its
+    steps, keeping what a step changes; else None."""
     if not hasattr(integ, "interrupt"):
         return None
-    integ.interrupt = stop.pending
-    return checkpoint.Rewind([stateful[name] for name in ("integrator", "model", "rebars", "stretch", "viscosity")])
+    changed = ("integrator", "model", "interface", "star_layout", "rebars", "stretch", "viscosity")
+    return Guard(integ, stop, checkpoint.Rewind([stateful[name] for name in changed]))
 
 
 def _dump_failed_stars(integ, out, comm):

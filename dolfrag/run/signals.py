@@ -1,10 +1,11 @@
-"""SIGINT and SIGTERM stop a run on every rank together: at the end of the current step, or,
-for an integrator whose steps may take longer than a launcher waits after its SIGTERM
-(theta), within the step, which is abandoned (run/loop.py).
+"""SIGINT and SIGTERM stop a run on every rank together: at the end of the current step, or
+within a step that may take longer than a launcher waits after its SIGTERM, which is then
+abandoned (run/loop.py, solver/interrupt.py).
 
-A handler only raises a flag; the time loop reduces the flags of all ranks once a step
-(``Stop.requested``), theta's Newton once an iteration (``Stop.pending``), so a signal that
-reaches one rank (mpirun, a batch scheduler) stops them all at the same point.
+A handler only raises flags: ``signal`` for Python, ``flag`` for compiled loops. The time
+loop reduces the flags of all ranks once a step (``Stop.requested``); inside a step, theta's
+Newton once an iteration and the imex star solver once a step (``Stop.pending``), so a
+signal that reaches one rank (mpirun, a batch scheduler) stops them all at the same point.
 ``DOLFRAG_SIGNAL_AT_STEP=N`` (or ``N:SIGKILL``, any signal name) makes rank 0 send itself SIGTERM (that signal) after step N, before its checkpoint: a stop at a
 known step, for the tests of checkpoint and resume.
 """
@@ -27,6 +28,7 @@ class Stop:
         self._send_at = int(at) if at and comm.rank == 0 else None
         self._send = signal.Signals[name or "SIGTERM"]
         self._old = {}
+        self.flag = np.zeros(1, dtype=np.int8)  # 1 once this rank got a signal
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():  # elsewhere Python cannot catch signals
@@ -40,22 +42,25 @@ class Stop:
 
     def _handle(self, signum, frame):
         self.signal = signal.Signals(signum)
+        self.flag[0] = 1
 
     def pending(self):
         """Whether any rank got a signal. Collective."""
-        return self._agree(False)[0]
+        return self._agree()[0]
 
-    def requested(self, step, due):
-        """(stop, checkpoint): whether any rank got a signal, and whether any rank's
-        ``due`` (a checkpoint's wall-time interval has passed) is set. Collective."""
+    def requested(self, step, due, slow):
+        """(stop, checkpoint, slow): whether any rank got a signal, whether any rank's
+        ``due`` (a checkpoint's wall-time interval has passed) is set, and whether any
+        rank's ``slow`` (its step took long) is. Collective."""
         if step == self._send_at:
             os.kill(os.getpid(), self._send)
-        return self._agree(due)
+        return self._agree(due, slow)
 
-    def _agree(self, due):
-        """(any rank's signal, any rank's ``due``), the signal kept on every rank. Collective."""
-        flags = np.array([0 if self.signal is None else int(self.signal), int(due)])
+    def _agree(self, *flags):
+        """(any rank's signal, then per flag whether any rank's is set), the signal kept on
+        every rank. Collective."""
+        flags = np.array([0 if self.signal is None else int(self.signal), *map(int, flags)])
         self.comm.Allreduce(MPI.IN_PLACE, flags, op=MPI.MAX)
         if flags[0] and self.signal is None:
             self.signal = signal.Signals(int(flags[0]))
-        return bool(flags[0]), bool(flags[1])
+        return tuple(bool(flag) for flag in flags)

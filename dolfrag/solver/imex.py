@@ -139,6 +139,17 @@ class Imex:
         self._imposed = (comps, velocity)
 
     @property
+    def interrupt(self):
+        """None, or a stop request (solver/interrupt.py) that the interface solver asks once
+        a step; set, a stop abandons the step with StepInterrupted. Absent (AttributeError)
+        with linear springs, whose steps are short: a stop waits for their end."""
+        return self.interface.interrupt
+
+    @interrupt.setter
+    def interrupt(self, request):
+        self.interface.interrupt = request
+
+    @property
     def energy_time(self):
         """Time (s) of the Energies step() returns: t_{n+1/2}, the mid-step of the last step."""
         return self.t - self.h / 2

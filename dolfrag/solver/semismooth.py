@@ -44,6 +44,7 @@ from mpi4py import MPI
 from dolfrag.interface.stars import FlatStars
 from dolfrag.solver import star_kernel, star_replay
 from dolfrag.solver.energy import book_reaction_work
+from dolfrag.solver.interrupt import Responsive, StepInterrupted
 from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
 # the kernel's tuning constants, under the names the rest of the package reads them by
 from dolfrag.solver.star_kernel import CYCLE, GIVE_UP, REGULARISATION, STALL  # noqa: F401
@@ -162,12 +163,18 @@ class StarNewton:
         self.star_residual = np.zeros(self.layout.n_stars)  # each star's final scaled residual
         self._counters = np.zeros(4, dtype=np.int64)
         self._every_star = np.ones(self.layout.n_stars, dtype=np.bool_)  # the first pass's todo
+        self._no_stop = np.zeros(1, dtype=np.int8)  # the kernel's abort flag without a stop request
+        self._responsive = Responsive()
         self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
         self._entry_cached = np.zeros(self.layout.n_stars, dtype=np.int8)
         self.failed = None  # the unconverged stars' kernel inputs (star_replay.select), when a step has some
         self._data = None  # the link states and what _data_at gave at them
         self._position = np.empty(len(links), dtype=np.int64)  # of each link in the layout
         self._position[self.layout.links] = np.arange(len(links))
+
+    # None, or a stop request (solver/interrupt.py): the star loop then runs in a worker
+    # thread, gives up when its flag is set, and the step raises StepInterrupted
+    interrupt = None
 
     def solve(self, f, u, v, out):
         """Velocity increments of every owned star into out[star comps].
@@ -197,17 +204,23 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
+        interrupt = self.interrupt
+        call = _call if interrupt is None else self._responsive  # a stop request: in a worker thread
+        abort = self._no_stop if interrupt is None else interrupt.flag
+
         def solve_stars(cap, todo, regularisation=star_kernel.REGULARISATION):
             self._counters[:] = 0
-            star_kernel.solve_stars(*lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
-                                    float(h), float(self.rtol), int(cap), bool(self.predict),
-                                    float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
-                                    self._gbar, self._slip, self.status, self.star_residual, self._counters,
-                                    self._entry_codes, self._entry_cached, float(regularisation), todo)
+            call(star_kernel.solve_stars, *lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
+                 float(h), float(self.rtol), int(cap), bool(self.predict),
+                 float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
+                 self._gbar, self._slip, self.status, self.star_residual, self._counters,
+                 self._entry_codes, self._entry_cached, float(regularisation), todo, abort)
 
         solve_stars(self.max_iterations, self._every_star)
-        if self._counters[N_UNCONVERGED] and self.escalation > 1:
+        if self._counters[N_UNCONVERGED] and self.escalation > 1 and not abort[0]:
             self._solve_unconverged_again(solve_stars)
+        if interrupt is not None and interrupt.pending():  # every rank asks once a step
+            raise StepInterrupted
         out[lay.comps] = self._x
         self.reaction[lay.comps] = self._reaction
         self.iterations = int(self._counters[ITERATIONS])
@@ -328,6 +341,10 @@ class StarNewton:
         self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, shift, cohesion_T,
                                                       lay.weight, lay.links, self._absorbed)
         self.model.absorb(self._absorbed)
+
+
+def _call(function, *args):
+    return function(*args)
 
 
 class ConvergenceError(RuntimeError):

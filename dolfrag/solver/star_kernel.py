@@ -922,12 +922,12 @@ def gather_stars(comps, comp_off, link_off, slot_A, slot_B, frame, u, v, f, pres
                 dg_out[l, i] = h * dg
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", nogil=True)
 def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                 rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                 floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                 x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                regularisation=REGULARISATION, todo=None):
+                regularisation=REGULARISATION, todo=None, abort=None):
     """Solve every star of the rank for this step (with ``todo``, a per-star bool array, only
     those where it is True: the others' outputs are left as they are).
 
@@ -954,22 +954,27 @@ def solve_stars(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, 
     of its stored factors (entry_codes, per link) and what they were if it started from their
     prediction (entry_cached; NONE if it started from zero), and in ``factored`` the data
     they were formed with. ``regularisation``: on sticking links' reaction diagonals
-    (REGULARISATION; a step's second pass takes more, solver/semismooth.py).
+    (REGULARISATION; a step's second pass takes more, solver/semismooth.py). ``abort``: a
+    one-element int8 array another thread may set (a stop request, solver/interrupt.py):
+    the call then returns within one Newton iteration, its outputs unfinished. It releases
+    the GIL, so that such a thread can run.
     """
     if todo is None:
         todo = np.ones(len(comp_off) - 1, dtype=np.bool_)
+    if abort is None:
+        abort = np.zeros(1, dtype=np.int8)
     if frame.shape[1] == 2:  # the dimension a compile-time constant: see _solve_stars
         _solve_stars(2, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                      x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                     regularisation, todo)
+                     regularisation, todo, abort)
     else:
         _solve_stars(3, comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, elimination,
                      rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                      floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                      x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                     regularisation, todo)
+                     regularisation, todo, abort)
 
 
 @njit(cache=True, error_model="numpy")
@@ -1003,7 +1008,7 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
                  rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, rtol, max_iterations, predict,
                  floor_m, floor_c, fac_off, piv_off, factors, pivots, codes, slip_dir, cached, factored,
                  x_out, r_out, reaction, gbar_out, slip_out, status, residual, counters, entry_codes, entry_cached,
-                 regularisation, todo):
+                 regularisation, todo, abort):
     """solve_stars in d dimensions, d a compile-time constant: the loops over the
     components of a link are then unrolled (measured on captured steps of the damaged bars:
     a 2D call 21.5 -> 18.4 ms, 3D 91.4 -> 87.5 ms)."""
@@ -1033,6 +1038,8 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
     held_code = np.empty(L_max, np.int8)
     formed_at = np.empty((L_max, d))  # per link, the slip direction and scale of Newton's last factors
     for s in range(n_stars):
+        if abort[0]:
+            return
         if not todo[s]:
             continue
         p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
@@ -1094,6 +1101,8 @@ def _solve_stars(d, comp_off, link_off, slot_A, slot_B, frame, weight, rho, froz
         chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
         since = 0  # the iteration this start began after: the schedule (CYCLE, FALLBACK) counts from it
         for iteration in range(1, max_iterations + 2):
+            if abort[0]:  # a star may take seconds (ESCALATION)
+                return
             k = iteration - since
             scaled_m, scaled_c = _evaluate(q, L, d, sA, sB, fr, w, rh, fz, m, fx, b_, gn, dgs, mus, shs, chs, kNs, kTs,
                                            h, xs, rs, floor_m, floor_c, Bx, gbar, slip, branch, e, force, R,

@@ -37,6 +37,7 @@ from dolfrag import compat, loads
 from dolfrag.interface.contact import link_blocks
 from dolfrag.solver import semismooth
 from dolfrag.solver.energy import global_energies, reaction_work
+from dolfrag.solver.interrupt import StepInterrupted
 from dolfrag.solver.options import NewtonOptions
 from dolfrag.solver.sparse_system import LinearSolveError, SparseSystem
 from dolfrag.solver.theta.residual import ThetaResidual
@@ -50,11 +51,6 @@ class ConvergenceError(semismooth.ConvergenceError):
         self.t, self.h, self.residual, self.iterations, self.reason = t, h, residual, iterations, reason
         super().__init__(f"theta step at t = {t:.6g} s did not converge with sub-steps down to h = {h:.3g} s: "
                          f"{reason}; scaled residual {residual:.3g} after {iterations} Newton iterations")
-
-
-class StepInterrupted(Exception):
-    """A step abandoned because ``Theta.interrupt`` said so: the integrator's state is partly
-    advanced, and the caller restores the one it kept from before the step."""
 
 
 class _NotConverged(Exception):
@@ -100,9 +96,9 @@ class Theta:
 
     # what a checkpoint keeps (a resumed run refactorises at its first step)
     STATE = ("u", "v", "t", "n", "work", "numerical", "r", "_g", "_x_last", "_h_last", "_depth", "_deepest", "_calm")
-    # None, or a collective callable asked before each Newton iteration (a stop request: a
-    # theta step may take minutes, more than a scheduler waits after its SIGTERM); True
-    # abandons the step with StepInterrupted
+    # None, or a stop request (solver/interrupt.py) whose pending() is asked before each
+    # Newton iteration (a theta step may take minutes, more than a launcher waits after its
+    # SIGTERM); True abandons the step with StepInterrupted
     interrupt = None
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(), rebars=None,
@@ -215,7 +211,7 @@ class Theta:
         for iteration in range(1, cap + 1):
             if point.converged:
                 break
-            if self.interrupt is not None and self.interrupt():
+            if self.interrupt is not None and self.interrupt.pending():
                 raise StepInterrupted
             self.interface.iterations += 1
             if self._reusable(iteration, h, point):  # the factorisation in hand first
