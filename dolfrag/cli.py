@@ -99,17 +99,18 @@ def _plot_load(case, out, comm):
 
 def _h2_air_lines(numbers):
     """`name = value  # note` lines of an h2-air load's numbers (loads.h2_air_numbers), SI,
-    pressures also in bar, beside gas.PUBLISHED (stoichiometric H2-air at 1 atm, 298 K)."""
-    bar, ref = 1e-5, gas.PUBLISHED
-    P_CJ, published = numbers["P_CJ_Pa"], "stoichiometric at 1 atm, published"
+    pressures also in bar, beside gas.PUBLISHED for its oxidiser (the stoichiometric mixture)."""
+    bar, ref = 1e-5, gas.PUBLISHED[numbers["oxidizer"]]
+    P_CJ, published = numbers["P_CJ_Pa"], f"{ref['state']}, published"
+    aicc = f"{numbers['P_AICC_Pa'] * bar:.3f} bar absolute"
     notes = {
-        "P_AICC_Pa": f"{numbers['P_AICC_Pa'] * bar:.3f} bar absolute; {published} {ref['P_AICC_Pa'] * bar:.0f} bar",
+        "P_AICC_Pa": f"{aicc}; {published} {ref['P_AICC_Pa'] * bar:.0f} bar" if "P_AICC_Pa" in ref else aicc,
         "T_AICC_K": "adiabatic isochoric complete combustion",
         "c_b_m_s": "burnt gas (AICC), equilibrium sound speed",
         "frequency_Hz": "c_b / (2 room_length)",
-        "D_CJ_m_s": f"{published} {ref['D_CJ_m_s']:.0f} m/s",
-        "P_CJ_Pa": f"{P_CJ * bar:.2f} bar absolute; {published} {ref['P_CJ_Pa'] * bar:.1f} bar",
-        "T_CJ_K": "",
+        "D_CJ_m_s": f"{published} {ref['D_CJ_m_s']:g} m/s",
+        "P_CJ_Pa": f"{P_CJ * bar:.2f} bar absolute; {published} {ref['P_CJ_Pa'] * bar:.3g} bar",
+        "T_CJ_K": f"{published} {ref['T_CJ_K']:g} K" if "T_CJ_K" in ref else "",
         "u_CJ_m_s": "burnt gas velocity behind the CJ front",
         "P_reflected_Pa": f"{numbers['P_reflected_Pa'] * bar:.2f} bar absolute = {numbers['P_reflected_Pa'] / P_CJ:.2f}"
                           f" P_CJ; usual estimate {ref['reflected_per_P_CJ']} P_CJ",
@@ -120,8 +121,10 @@ def _h2_air_lines(numbers):
                                 if numbers["regime"] == "deflagration" else "P_reflected - p0, the spike",
         "plateau_overpressure_Pa": "(1 - heat_loss)(P_AICC - p0)",
         "decay_s": "", "damping_s": ""}
-    head = (f"# h2-air, {numbers['h2_fraction']:g} H2 by volume, {numbers['regime']}, T0 = {numbers['T0_K']:g} K, "
-            f"p0 = {numbers['p0_Pa']:g} Pa (Cantera {numbers['cantera']}, {numbers['mechanism']}: its H, O, N species)")
+    diluted = f" + {numbers['diluent_fraction']:g} {numbers['diluent']}" if numbers.get("diluent_fraction") else ""
+    head = (f"# h2-air, {numbers['h2_fraction']:g} H2 by volume in H2-{numbers['oxidizer']}{diluted}, "
+            f"{numbers['regime']}, T0 = {numbers['T0_K']:g} K, p0 = {numbers['p0_Pa']:g} Pa "
+            f"(Cantera {numbers['cantera']}, {numbers['mechanism']}: the species of the mixture's elements)")
     return "\n".join([head] + [f"{name} = {numbers[name]:.6g}" + (f"  # {note}" if note else "")
                                 for name, note in notes.items() if name in numbers])
 

@@ -58,13 +58,15 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from dolfrag import bunker, concrete
+from dolfrag import bunker, concrete, mixture
 from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
 
 GEOMETRY_KINDS = ("rectangle", "box", "bunker", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
 SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", "table")
 REGIMES = ("deflagration", "detonation")  # of an h2-air explosion
+OXIDIZERS = tuple(mixture.OXIDIZERS)  # of an h2-air explosion's hydrogen
+DILUENTS = tuple(mixture.DILUENTS)    # of an oxygen mixture
 LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
 RATE_EFFECTS = ("none", "fib2010")
@@ -221,6 +223,7 @@ _OSCILLATING = ("signal", "deflagration", "detonation")
 _DETONATION = ("signal", "detonation")
 _H2_AIR = ("signal", "h2-air")
 _REVERBERATING = _DETONATION + ("h2-air",)
+_OXYGEN = ("oxidizer", "oxygen")
 _GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.h2_air_shape)
 _RCCM = ("law", "rccm")
 _STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
@@ -346,8 +349,9 @@ class Load:
     detonation: spike `peak` at t = 0 decaying (e-folding time `decay`) to `plateau`, with
     reverberations (frequency, amplitude relative to plateau, damping time) and an optional
     local peak, all times (1 - t/duration).
-    h2-air: a hydrogen-air explosion (docs/loads.md), the deflagration or detonation shape
-    (`regime`) with its levels computed from the mixture (dolfrag/gas.py: h2_fraction, T0, p0),
+    h2-air: a hydrogen explosion (docs/loads.md), the deflagration or detonation shape
+    (`regime`) with its levels computed from the mixture (dolfrag/gas.py: h2_fraction in air
+    or in oxygen, `oxidizer`, an oxygen mixture's optional `diluent`, T0, p0),
     the overpressures reduced by `heat_loss`, the acoustic frequency c_b / (2 room_length);
     `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`
     (detonation; defaults loads.h2_air_shape).
@@ -378,13 +382,20 @@ class Load:
     local_peak: float | None = _f("float", 0.0, bounds=">= 0", unit="Pa", when=_DETONATION)
     local_time: float | None = _f("float", None, bounds=">= 0", unit="s", when=_DETONATION)
     local_width: float | None = _f("float", None, bounds="> 0", unit="s", when=_DETONATION)
-    # h2-air: H2 volume fraction in H2-air (air O2:N2 = 1:3.76), between the lean limit of a
-    # complete burn and well past stoichiometric (0.296); the explosion's regime
-    h2_fraction: float | None = _f("float", bounds=">= 0.1, <= 0.6", when=_H2_AIR)
+    # h2-air: H2 volume fraction in H2 and its oxidiser, air (O2:N2 = 1:3.76) or oxygen,
+    # within the oxidiser's limits (mixture.H2_LIMITS, checked in _check_h2_air); the
+    # explosion's regime
+    h2_fraction: float | None = _f("float", bounds="> 0, < 1", when=_H2_AIR)
     regime: str | None = _f("str", choices=REGIMES, when=_H2_AIR)
+    oxidizer: str | None = _f("str", "air", choices=OXIDIZERS, when=_H2_AIR)
+    # an oxygen mixture's inert diluent, its volume fraction of the whole mixture (at most
+    # mixture.DILUENT_PER_O2 moles per mole of O2, checked in _check_h2_air)
+    diluent: str | None = _f("str", "N2", choices=DILUENTS, when=_OXYGEN)
+    diluent_fraction: float | None = _f("float", 0.0, bounds=">= 0, < 1", when=_OXYGEN)
     # initial (ambient) state of the mixture: a room's air; within these bounds every state
-    # computed (the reflected shock's is the hottest) stays below 3500 K, the upper end of
-    # the thermodynamic data (gas.py)
+    # computed for an air mixture (the reflected shock's is the hottest) stays below 3500 K,
+    # the upper end of the thermodynamic data's fits; an oxygen mixture's reach 4,184 K,
+    # where the extrapolated fits still hold (gas.compute)
     T0: float | None = _f("float", 293.15, bounds=">= 250, <= 400", unit="K", when=_H2_AIR)
     p0: float | None = _f("float", 101325.0, bounds=">= 5e4, <= 2e5", unit="Pa", when=_H2_AIR)
     # share of the AICC overpressure lost to the walls (0: the adiabatic bound)
@@ -763,7 +774,9 @@ def _check_load(load: Load, geometry: Geometry) -> None:
 
 
 def _check_h2_air(load: Load) -> None:
-    """The keys of an h2-air load that belong to one regime only."""
+    """The mixture of an h2-air load within its limits (mixture.py), and the keys that
+    belong to one regime only."""
+    _check_mixture(load)
     only = {"deflagration": ("rise",), "detonation": ("decay", "damping")}
     for regime, names in only.items():
         for name in names:
@@ -774,6 +787,32 @@ def _check_h2_air(load: Load) -> None:
     if load.regime == "deflagration" and load.rise is None:
         raise CaseError("missing key load.rise (required when load.regime is 'deflagration'): "
                         "must be a number > 0 (s)")
+
+
+def _check_mixture(load: Load) -> None:
+    """h2_fraction within its oxidiser's limits; a diluted oxygen mixture no more diluted
+    than air and of an equivalence ratio within air's limits (mixture.py's docstring)."""
+    low, high = mixture.H2_LIMITS[load.oxidizer]
+    if not low <= load.h2_fraction <= high:
+        raise CaseError(f"load.h2_fraction = {load.h2_fraction!r}: with load.oxidizer = {load.oxidizer!r} must be "
+                        f">= {low:g} and <= {high:g} (-, H2 by volume in H2-{load.oxidizer}: "
+                        f"{'its detonation limits' if load.oxidizer == 'oxygen' else 'a complete burn'})")
+    if load.oxidizer != "oxygen" or load.diluent_fraction == 0:
+        return
+    given = mixture.Mixture(load.h2_fraction, load.oxidizer, load.diluent, load.diluent_fraction)
+    phi = mixture.equivalence_ratio(load.h2_fraction, "oxygen")
+    phi_low, phi_high = (mixture.equivalence_ratio(x, "air") for x in mixture.H2_LIMITS["air"])
+    if not phi_low <= phi <= phi_high:
+        x_low, x_high = (2 * p / (2 * p + 1) for p in (phi_low, phi_high))  # x = 2 phi / (2 phi + 1) in oxygen
+        raise CaseError(f"load.h2_fraction = {load.h2_fraction!r}: with load.diluent_fraction > 0 must be >= "
+                        f"{x_low:.3f} and <= {x_high:.3f} (-, the equivalence ratios {phi_low:.3g}-{phi_high:.3g} "
+                        f"of H2-air's limits)")
+    per_o2 = mixture.diluent_per_o2(given)
+    if per_o2 > mixture.DILUENT_PER_O2:
+        most = mixture.DILUENT_PER_O2 * (1 - load.h2_fraction) / (1 + mixture.DILUENT_PER_O2 * (1 - load.h2_fraction))
+        raise CaseError(f"load.diluent_fraction = {load.diluent_fraction!r}: {per_o2:.3g} moles of {load.diluent} "
+                        f"per mole of O2; at most {mixture.DILUENT_PER_O2:g} (air's N2) allowed, i.e. "
+                        f"<= {most:.4f} with load.h2_fraction = {load.h2_fraction!r} (-, of the whole mixture)")
 
 
 _GRADE_KEYS = {"E": "E", "nu": "nu", "rho": "rho"}  # [material] key: Concrete field

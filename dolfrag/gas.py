@@ -1,11 +1,14 @@
-"""A hydrogen–air explosion in a closed room: the gas states that set its pressure load.
+"""A hydrogen explosion in a closed room: the gas states that set its pressure load.
 
-Pure functions of the mixture, x the volume (mole) fraction of H2 in H2–air with air
-O2:N2 = 1:3.76 by volume, and of its initial state T0 (K), p0 (Pa), computed with Cantera's
-chemical equilibrium solver and the thermodynamic data of GRI-Mech 3.0 (``gri30.yaml``,
-bundled with Cantera; an equilibrium needs no reaction rates). Only its 18 species made of
-H, O and N take part (``unburnt``): a carbon-free mixture forms none of the others, and their
-data hold from 300 K to 3500 K, where the full set stops at 3000 K (CH3O).
+Pure functions of the mixture (a mixture.Mixture: x the volume (mole) fraction of H2 in H2 and
+its oxidiser, air O2:N2 = 1:3.76 by volume or pure oxygen, the latter optionally diluted by N2
+or Ar) and of its initial state T0 (K), p0 (Pa), computed with Cantera's chemical equilibrium
+solver and the thermodynamic data of GRI-Mech 3.0 (``gri30.yaml``, bundled with Cantera; an
+equilibrium needs no reaction rates). Only its species made of the mixture's elements take
+part (``unburnt``: 18 made of H, O, N for H2-air, 8 made of H, O for H2-O2, and AR with
+argon): a carbon-free mixture forms none of the others, and their data are fitted from 300 K
+to 3500 K, where the full set stops at 3000 K (CH3O). H2-O2's burnt gas is hotter, up to
+about 4,200 K: there the fits are extrapolated (``compute``).
 
 * AICC, adiabatic isochoric complete combustion: the equilibrium at the initial internal
   energy and volume (``equilibrate("UV")``): P_AICC (Pa, absolute), T_AICC (K) and the burnt
@@ -33,6 +36,7 @@ import json
 import math
 import os
 import tempfile
+import warnings
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
@@ -40,8 +44,9 @@ import cantera as ct
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from dolfrag.mixture import composition
+
 MECHANISM = "gri30.yaml"
-N2_PER_O2 = 3.76          # air, by volume
 # the numbers of `explosion` change only with this, the mixture, Cantera and the mechanism:
 # it is part of each cache file's key (raise it when a computation below changes)
 METHOD = 1
@@ -50,28 +55,28 @@ METHOD = 1
 # enough that the truncation error (~ step^2) is negligible
 _SOUND_STEP = 1e-4
 # the temperatures (K) between which an equilibrium Hugoniot's state is sought: the burnt
-# gas of any H2-air mixture lies between a room's temperature and fully dissociated gas
+# gas of any of these mixtures lies between a room's temperature and fully dissociated gas
 _T_BRACKET = (200.0, 7000.0)
-# published values for stoichiometric H2-air (29.6 % H2) at 1 atm and 298 K, beside which
-# `dolfrag loads` prints the computed ones; the reflected pressure's and the Taylor
-# plateau's usual estimates, as ratios to P_CJ (docs/loads.md)
-PUBLISHED = {"P_AICC_Pa": 8.0e5, "D_CJ_m_s": 1970.0,
-             "P_CJ_Pa": 15.8e5, "reflected_per_P_CJ": "2.5", "Taylor_per_P_CJ": "0.34-0.4"}
+# published values for the stoichiometric mixture of each oxidiser, beside which `dolfrag
+# loads` prints the computed ones (docs/loads.md): H2-air (29.6 % H2) at 1 atm and 298 K;
+# H2-O2 at 1 bar and 298.15 K, NASA CEA's CJ detonation (McBride & Gordon, NASA RP-1311
+# part II, 1996, example 6, its first column); the reflected pressure's and the
+# Taylor plateau's usual estimates, as ratios to P_CJ
+PUBLISHED = {
+    "air": {"state": "stoichiometric at 1 atm", "P_AICC_Pa": 8.0e5, "D_CJ_m_s": 1970.0, "P_CJ_Pa": 15.8e5,
+            "reflected_per_P_CJ": "2.5", "Taylor_per_P_CJ": "0.34-0.4"},
+    "oxygen": {"state": "stoichiometric at 1 bar, NASA CEA", "D_CJ_m_s": 2835.5, "P_CJ_Pa": 18.768e5,
+               "T_CJ_K": 3674.3, "reflected_per_P_CJ": "2.5", "Taylor_per_P_CJ": "0.34-0.4"}}
 
 
-def composition(h2_fraction):
-    """Mole fractions {species: -} of H2–air with ``h2_fraction`` (-) of H2 by volume, the
-    rest air, O2:N2 = 1:3.76. Stoichiometric (2 H2 + O2): x = 2 / (2 + 4.76) = 0.296."""
-    air = 1.0 - h2_fraction
-    return {"H2": h2_fraction, "O2": air / (1.0 + N2_PER_O2), "N2": air * N2_PER_O2 / (1.0 + N2_PER_O2)}
-
-
-def unburnt(h2_fraction, T0, p0):
-    """A Cantera ideal gas of the H, O, N species of GRI-Mech 3.0, the unburnt mixture at
-    T0 (K), p0 (Pa)."""
-    species = [s for s in ct.Species.list_from_file(MECHANISM) if set(s.composition) <= {"H", "O", "N"}]
-    gas = ct.Solution(thermo="ideal-gas", species=species)
-    gas.TPX = T0, p0, composition(h2_fraction)
+def unburnt(mixture, T0, p0):
+    """A Cantera ideal gas of the GRI-Mech 3.0 species made of the Mixture's elements, the
+    unburnt mixture at T0 (K), p0 (Pa)."""
+    moles = composition(mixture)
+    every = ct.Species.list_from_file(MECHANISM)
+    elements = set().union(*(s.composition for s in every if s.name in moles))
+    gas = ct.Solution(thermo="ideal-gas", species=[s for s in every if set(s.composition) <= elements])
+    gas.TPX = T0, p0, moles
     return gas
 
 
@@ -176,7 +181,7 @@ def taylor_plateau(gas, cj):
         return u[0]
     at_rest.terminal = True
     # u falls as p does: integrate ln p downward from the CJ state until u = 0, which every
-    # H2-air mixture reaches near 0.35 P_CJ, far above the lower end of the interval
+    # mixture reaches near 0.35-0.4 P_CJ, far above the lower end of the interval
     solution = solve_ivp(slowdown, (math.log(cj.p), math.log(0.02 * cj.p)), [cj.u], events=at_rest,
                          rtol=1e-10, atol=1e-8)
     if not solution.t_events[0].size:
@@ -186,7 +191,7 @@ def taylor_plateau(gas, cj):
 
 @dataclass(frozen=True)
 class Explosion:
-    """The gas states of one H2–air mixture (absolute pressures): AICC (P Pa, T K, c_b the
+    """The gas states of one Mixture (absolute pressures): AICC (P Pa, T K, c_b the
     burnt gas's equilibrium sound speed m/s); the CJ detonation (D m/s, P Pa, T K, u m/s the
     burnt gas's velocity); the reflected pressure and temperature at a rigid wall (Pa, K);
     the Taylor plateau (Pa)."""
@@ -202,19 +207,25 @@ class Explosion:
     P_Taylor_Pa: float
 
 
-def compute(h2_fraction, T0, p0):
-    """The Explosion of H2–air with ``h2_fraction`` (-) of H2 at T0 (K), p0 (Pa): some
-    hundreds of Cantera equilibria, a fraction of a second."""
-    P, T, c_b = aicc(unburnt(h2_fraction, T0, p0))
-    gas = unburnt(h2_fraction, T0, p0)
-    cj = chapman_jouguet(gas)
-    P_r, T_r = reflected_shock(gas, cj)
-    return Explosion(P, T, c_b, cj.D, cj.p, cj.T, cj.u, P_r, T_r, taylor_plateau(gas, cj))
+def compute(mixture, T0, p0):
+    """The Explosion of the Mixture at T0 (K), p0 (Pa): some hundreds of Cantera
+    equilibria, a fraction of a second to a few seconds."""
+    with warnings.catch_warnings():
+        # H2-O2's burnt states (3,500-4,200 K) lie past the end of GRI-Mech's fits, 3500 K,
+        # and Cantera warns at each of their equilibria; there the extrapolated fits give the
+        # numbers of NASA Glenn's data (fitted to 6000 K) within 3e-4 (tests/test_h2_oxygen.py)
+        warnings.filterwarnings("ignore", message="ChemEquil.*outside valid range", category=UserWarning)
+        P, T, c_b = aicc(unburnt(mixture, T0, p0))
+        gas = unburnt(mixture, T0, p0)
+        cj = chapman_jouguet(gas)
+        P_r, T_r = reflected_shock(gas, cj)
+        return Explosion(P, T, c_b, cj.D, cj.p, cj.T, cj.u, P_r, T_r, taylor_plateau(gas, cj))
 
 
-def cache_key(h2_fraction, T0, p0):
-    """What the numbers of a mixture depend on (the cache file's key)."""
-    return {"h2_fraction": float(h2_fraction), "T0_K": float(T0), "p0_Pa": float(p0),
+def cache_key(mixture, T0, p0):
+    """What the numbers of a Mixture depend on (the cache file's key)."""
+    return {"h2_fraction": float(mixture.h2_fraction), "oxidizer": mixture.oxidizer, "diluent": mixture.diluent,
+            "diluent_fraction": float(mixture.diluent_fraction), "T0_K": float(T0), "p0_Pa": float(p0),
             "mechanism": MECHANISM, "cantera": ct.__version__, "method": METHOD}
 
 
@@ -262,19 +273,18 @@ def _write(path, key, explosion):
 _KNOWN = {}  # this process's Explosions by cache file
 
 
-def explosion(h2_fraction, T0, p0, comm=None):
-    """The Explosion of H2–air with ``h2_fraction`` (-) of H2 at T0 (K), p0 (Pa): from this
-    process's memory, else from its cache file (``cache_file``), else computed and written
+def explosion(mixture, T0, p0, comm=None):
+    """The Explosion of the Mixture at T0 (K), p0 (Pa): from this process's memory, else from its cache file (``cache_file``), else computed and written
     there. With ``comm`` (collective): rank 0 reads or computes and every rank receives its
     numbers, so all ranks hold the same; later calls, with or without comm, reuse them."""
-    key = cache_key(h2_fraction, T0, p0)
+    key = cache_key(mixture, T0, p0)
     path = cache_file(key)
     if path not in _KNOWN:
         found = None
         if comm is None or comm.rank == 0:
             found = _read(path, key)
             if found is None:
-                found = compute(h2_fraction, T0, p0)
+                found = compute(mixture, T0, p0)
                 _write(path, key, found)
         _KNOWN[path] = found if comm is None else comm.bcast(found, root=0)
     return _KNOWN[path]

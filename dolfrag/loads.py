@@ -9,8 +9,8 @@ The spatial profile is uniform on the loaded boundary, optionally times ``factor
 (a local over-pressure): one load vector times one signal.
 
 An "h2-air" load is the deflagration or detonation shape with its levels computed from the
-gas mixture (``h2_air_shape``, dolfrag/gas.py): the functions here taking a config.Load
-accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
+gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, dolfrag/gas.py): the functions
+here taking a config.Load accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
 called collectively first, computes them on rank 0 for every rank.
 """
 from dataclasses import asdict, replace
@@ -21,6 +21,7 @@ import ufl
 from scipy.optimize import brentq
 
 from dolfrag import compat, gas
+from dolfrag.mixture import Mixture
 
 # h2-air defaults for the keys a case leaves out (docs/loads.md, "Hydrogen-air explosion"):
 # the oscillation's amplitude (-), relative to the mean pressure (deflagration) or to the
@@ -143,6 +144,13 @@ def acoustic_frequency(sound_speed, length):
     return sound_speed / (2.0 * length)
 
 
+def h2_mixture(load):
+    """The mixture.Mixture of an h2-air config.Load (an air mixture takes no diluent)."""
+    if load.oxidizer == "air":
+        return Mixture(load.h2_fraction)
+    return Mixture(load.h2_fraction, load.oxidizer, load.diluent, load.diluent_fraction)
+
+
 def h2_air_shape(load, comm=None):
     """The deflagration or detonation config.Load (``load.regime``) of an h2-air load; any
     other load unchanged. Overpressures (Pa), the mixture's gas.Explosion E, p0 its initial
@@ -158,7 +166,7 @@ def h2_air_shape(load, comm=None):
     With ``comm`` collective (gas.explosion: rank 0 computes, every rank gets its numbers)."""
     if load.signal != "h2-air":
         return load
-    state = gas.explosion(load.h2_fraction, load.T0, load.p0, comm)
+    state = gas.explosion(h2_mixture(load), load.T0, load.p0, comm)
     f = acoustic_frequency(state.c_b_m_s, load.room_length)
     aicc = (1.0 - load.heat_loss) * (state.P_AICC_Pa - load.p0)
     amplitude = H2_AIR_AMPLITUDE[load.regime] if load.amplitude is None else load.amplitude
@@ -175,8 +183,9 @@ def h2_air_numbers(load):
     overpressure): the mixture and its initial state, the gas.Explosion, the acoustic
     frequency (Hz), and the shape's overpressures (Pa): its peak, and for a detonation its
     plateau, decay and damping times (s)."""
-    state, shaped = gas.explosion(load.h2_fraction, load.T0, load.p0), h2_air_shape(load)
-    numbers = {"h2_fraction": load.h2_fraction, "regime": load.regime, "T0_K": load.T0, "p0_Pa": load.p0,
+    mixture, shaped = h2_mixture(load), h2_air_shape(load)
+    state = gas.explosion(mixture, load.T0, load.p0)
+    numbers = {**asdict(mixture), "regime": load.regime, "T0_K": load.T0, "p0_Pa": load.p0,
                "mechanism": gas.MECHANISM, "cantera": gas.ct.__version__, **asdict(state),
                "frequency_Hz": shaped.frequency, "peak_overpressure_Pa": shaped.peak, "heat_loss": load.heat_loss}
     if load.regime == "detonation":

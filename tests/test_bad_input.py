@@ -42,6 +42,7 @@ BARS = ["rebar.faces=['bottom']", "rebar.cover=0.01", "rebar.diameter=0.005", "r
 SHORT = ["time.end=2e-6", "output.figures=false", "output.fields=0"]
 H2_AIR = ["load.signal='h2-air'", "load.peak=", "load.rise=", "load.h2_fraction=0.296", "load.regime='detonation'",
           "load.room_length=3.0"]  # a detonation of stoichiometric H2-air in a 3 m room
+H2_O2 = ["load.oxidizer='oxygen'", "load.h2_fraction=0.667"]  # ... of stoichiometric H2-O2
 
 # name: (case, --set overrides, other arguments, the key the one line must name)
 BAD = {
@@ -99,6 +100,17 @@ BAD = {
     "rise of an h2-air detonation": ("sound-bar", H2_AIR + ["load.rise=1e-6"], [], "load.rise"),
     "heat loss of all the pressure": ("sound-bar", H2_AIR + ["load.heat_loss=1"], [], "load.heat_loss"),
     "h2-air with a given peak": ("sound-bar", H2_AIR + ["load.peak=1e6"], [], "load.peak"),
+    "unknown oxidiser": ("sound-bar", H2_AIR + ["load.oxidizer='fluorine'"], [], "load.oxidizer"),
+    "H2 above the H2-O2 detonation limit": ("sound-bar", H2_AIR + H2_O2 + ["load.h2_fraction=0.95"], [],
+                                            "load.h2_fraction"),
+    "H2 below the H2-O2 detonation limit": ("sound-bar", H2_AIR + H2_O2 + ["load.h2_fraction=0.1"], [],
+                                            "load.h2_fraction"),
+    "diluted air": ("sound-bar", H2_AIR + ["load.diluent_fraction=0.2"], [], "load.diluent_fraction"),
+    "unknown diluent": ("sound-bar", H2_AIR + H2_O2 + ["load.diluent='He'"], [], "load.diluent"),
+    "more diluent per O2 than air's N2": ("sound-bar", H2_AIR + H2_O2 + ["load.diluent_fraction=0.6"], [],
+                                          "load.diluent_fraction"),
+    "diluted oxygen mixture leaner than H2-air's limit": ("sound-bar", H2_AIR + H2_O2 + [
+        "load.h2_fraction=0.2", "load.diluent_fraction=0.1"], [], "load.h2_fraction"),
     "negative drag coefficient": ("slab-3d-scabbing", ["debris.C_D=-1"], [], "debris.C_D"),
     "negative air density": ("slab-3d-scabbing", ["debris.air_density=-1.2"], [], "debris.air_density"),
     "ground level not a number": ("slab-3d-scabbing", ["debris.ground_z='floor'"], [], "debris.ground_z"),

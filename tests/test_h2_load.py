@@ -15,6 +15,7 @@ from conftest import dolfrag_cli, mpirun
 from test_signals import crossing_frequency
 from dolfrag import gas, loads
 from dolfrag.config import load_case
+from dolfrag.mixture import Mixture
 
 ATM = 101325.0            # Pa
 STOICHIOMETRIC = 2 / 6.76  # 2 H2 + (O2 + 3.76 N2): 0.296 H2 by volume
@@ -79,7 +80,7 @@ def minimum_wave_speed(h2_fraction):
 
 @pytest.fixture(scope="module")
 def stoichiometric():
-    return gas.compute(STOICHIOMETRIC, T_PUBLISHED, ATM)
+    return gas.compute(Mixture(STOICHIOMETRIC), T_PUBLISHED, ATM)
 
 
 # ---------------------------------------------------------------- gas states
@@ -90,7 +91,7 @@ def test_aicc_state_is_cantera_uv_equilibrium_and_the_published_8_bar(stoichiome
     assert stoichiometric.P_AICC_Pa == pytest.approx(g.P, rel=1e-6)
     assert stoichiometric.T_AICC_K == pytest.approx(g.T, rel=1e-6)
     # published ~8 bar absolute (one significant figure): within 0.3 bar
-    assert stoichiometric.P_AICC_Pa == pytest.approx(gas.PUBLISHED["P_AICC_Pa"], abs=0.3e5)
+    assert stoichiometric.P_AICC_Pa == pytest.approx(gas.PUBLISHED["air"]["P_AICC_Pa"], abs=0.3e5)
 
 
 def test_burnt_gas_sound_speed_is_the_equilibrium_one_by_a_pressure_perturbation(stoichiometric):
@@ -113,7 +114,7 @@ def test_burnt_gas_sound_speed_is_the_equilibrium_one_by_a_pressure_perturbation
 @FULL_SET_ABOVE_3000_K
 @pytest.mark.parametrize("h2_fraction", [STOICHIOMETRIC, LEAN])
 def test_cj_speed_and_pressure_are_the_minimum_speed_on_the_equilibrium_hugoniot(h2_fraction, stoichiometric):
-    found = stoichiometric if h2_fraction == STOICHIOMETRIC else gas.compute(h2_fraction, T_PUBLISHED, ATM)
+    found = stoichiometric if h2_fraction == STOICHIOMETRIC else gas.compute(Mixture(h2_fraction), T_PUBLISHED, ATM)
     D, p = minimum_wave_speed(h2_fraction)
     # the sonic point is the minimum (Jouguet's rule); D is flat there, so its minimum is as
     # accurate as the Hugoniot's pressure (1e-10; measured 1e-9 apart): 1e-7; the pressure at
@@ -125,8 +126,8 @@ def test_cj_speed_and_pressure_are_the_minimum_speed_on_the_equilibrium_hugoniot
 def test_cj_detonation_of_stoichiometric_h2_air_is_the_published_one(stoichiometric):
     # published 1,970 m/s and 15.8 bar: codes and thermodynamic data differ by ~0.5 %, 1 %
     # allowed for D and 2 % for P (rounded to 3 digits)
-    assert stoichiometric.D_CJ_m_s == pytest.approx(gas.PUBLISHED["D_CJ_m_s"], rel=0.01)
-    assert stoichiometric.P_CJ_Pa == pytest.approx(gas.PUBLISHED["P_CJ_Pa"], rel=0.02)
+    assert stoichiometric.D_CJ_m_s == pytest.approx(gas.PUBLISHED["air"]["D_CJ_m_s"], rel=0.01)
+    assert stoichiometric.P_CJ_Pa == pytest.approx(gas.PUBLISHED["air"]["P_CJ_Pa"], rel=0.02)
     assert stoichiometric.u_CJ_m_s == pytest.approx(stoichiometric.D_CJ_m_s * (1 - 1 / 1.81), rel=0.03)
 
 
@@ -134,7 +135,7 @@ def test_cj_detonation_of_stoichiometric_h2_air_is_the_published_one(stoichiomet
 def test_reflected_pressure_and_taylor_plateau_within_the_usual_estimates(h2_fraction, stoichiometric):
     """Usual estimates for H2-air (ideal gas, gamma ~ 1.2): reflected ~2.5 P_CJ (2.3-2.6 over
     gamma 1.15-1.3 and the equilibrium shift), plateau 0.34-0.4 P_CJ."""
-    found = stoichiometric if h2_fraction == STOICHIOMETRIC else gas.compute(h2_fraction, T_PUBLISHED, ATM)
+    found = stoichiometric if h2_fraction == STOICHIOMETRIC else gas.compute(Mixture(h2_fraction), T_PUBLISHED, ATM)
     assert 2.3 < found.P_reflected_Pa / found.P_CJ_Pa < 2.6
     assert 0.34 < found.P_Taylor_Pa / found.P_CJ_Pa < 0.40
     # the gas brought to rest on the CJ isentrope is below P_AICC: it kept the CJ front's entropy rise
@@ -172,7 +173,7 @@ def test_reflected_state_stops_the_cj_gas_by_an_independent_shock_solution(stoic
 def test_deflagration_peak_rise_and_frequency_are_the_gas_ones():
     sets = DEFLAGRATION + ["load.h2_fraction=0.296", "load.heat_loss=0.2"]
     load = load_case("wall-bending-clamped", sets + ["load.amplitude=0"]).load
-    state = gas.explosion(0.296, 293.15, ATM)
+    state = gas.explosion(Mixture(0.296), 293.15, ATM)
     P = 0.8 * (state.P_AICC_Pa - ATM)  # (1 - heat_loss)(P_AICC - p0)
     p = loads.signal(load)
     t_r, T = load.rise, load.duration
@@ -197,7 +198,7 @@ def test_detonation_spike_plateau_and_reverberations_are_the_gas_ones():
     T = 0.1  # s, the duration
     sets = DETONATION + ["load.h2_fraction=0.296", f"load.duration={T}", f"time.end={T}"]
     p = loads.signal(load_case("wall-bending-clamped", sets + ["load.amplitude=0"]).load)
-    state = gas.explosion(0.296, 293.15, ATM)
+    state = gas.explosion(Mixture(0.296), 293.15, ATM)
     assert p(0.0) == pytest.approx(state.P_reflected_Pa - ATM, rel=1e-12)
     decay = 3.0 / state.D_CJ_m_s  # default: the detonation's crossing time of the 3 m room
     assert p(decay) / (1 - decay / T) == pytest.approx(
@@ -219,42 +220,42 @@ def test_lean_mixture_loads_less_than_stoichiometric():
 
 # ---------------------------------------------------------------- the cache
 def test_cache_file_is_read_back_by_a_second_call(cache, monkeypatch):
-    first = gas.explosion(0.296, 293.15, ATM)
+    first = gas.explosion(Mixture(0.296), 293.15, ATM)
     files = list(cache.glob("h2-air-*.json"))
     assert len(files) >= 1 and not list(cache.glob("*.tmp"))
     monkeypatch.setattr(gas, "_KNOWN", {})
     monkeypatch.setattr(gas, "compute", lambda *a: pytest.fail("computed again instead of reading the cache"))
-    assert gas.explosion(0.296, 293.15, ATM) == first  # dataclass ==: every number identical
+    assert gas.explosion(Mixture(0.296), 293.15, ATM) == first  # dataclass ==: every number identical
 
 
 @pytest.mark.parametrize("text", ["{not json", '{"key": 1, "numbers": []}', ""])
 def test_a_corrupt_cache_file_is_recomputed(text, cache, monkeypatch):
-    good = gas.explosion(0.296, 293.15, ATM)
-    path = gas.cache_file(gas.cache_key(0.296, 293.15, ATM))
+    good = gas.explosion(Mixture(0.296), 293.15, ATM)
+    path = gas.cache_file(gas.cache_key(Mixture(0.296), 293.15, ATM))
     path.write_text(text)
     calls = []
     compute = gas.compute
     monkeypatch.setattr(gas, "compute", lambda *a: calls.append(a) or compute(*a))
     monkeypatch.setattr(gas, "_KNOWN", {})
-    assert gas.explosion(0.296, 293.15, ATM) == good and len(calls) == 1
+    assert gas.explosion(Mixture(0.296), 293.15, ATM) == good and len(calls) == 1
     assert json.loads(path.read_text())["numbers"]["D_CJ_m_s"] == good.D_CJ_m_s  # rewritten
 
 
 def test_a_cache_of_another_key_is_not_used(cache, monkeypatch):
-    good = gas.explosion(0.296, 293.15, ATM)
-    path = gas.cache_file(gas.cache_key(0.296, 293.15, ATM))
+    good = gas.explosion(Mixture(0.296), 293.15, ATM)
+    path = gas.cache_file(gas.cache_key(Mixture(0.296), 293.15, ATM))
     stored = json.loads(path.read_text())
     stored["key"]["cantera"] = "0.0"
     stored["numbers"]["D_CJ_m_s"] = 1.0
     path.write_text(json.dumps(stored))
     monkeypatch.setattr(gas, "_KNOWN", {})
-    assert gas.explosion(0.296, 293.15, ATM) == good
+    assert gas.explosion(Mixture(0.296), 293.15, ATM) == good
 
 
 def test_an_unwritable_cache_folder_only_computes(tmp_path, monkeypatch):
     (tmp_path / "file").write_text("x")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "file"))  # a file: no folder can be made in it
-    found = gas.explosion(0.296, 293.15, ATM)
+    found = gas.explosion(Mixture(0.296), 293.15, ATM)
     assert found.D_CJ_m_s == pytest.approx(1970, rel=0.01) and (tmp_path / "file").read_text() == "x"
 
 
@@ -265,7 +266,7 @@ def test_loads_command_prints_the_gas_states_beside_the_published_values(tmp_pat
                                                             for x in ("--set", s)), "--out", out)
     assert result.returncode == 0, result.stderr
     values = {k: float(v) for k, v in re.findall(r"^(\w+) = (\S+)", result.stdout, flags=re.M)}
-    state = gas.explosion(0.296, 293.15, ATM)
+    state = gas.explosion(Mixture(0.296), 293.15, ATM)
     for name in ("P_AICC_Pa", "T_AICC_K", "D_CJ_m_s", "P_CJ_Pa", "P_reflected_Pa", "P_Taylor_Pa", "c_b_m_s"):
         assert values[name] == pytest.approx(getattr(state, name), rel=1e-5), name  # printed to 6 digits
     assert values["frequency_Hz"] == pytest.approx(state.c_b_m_s / 6.0, rel=1e-5)
@@ -284,13 +285,13 @@ def test_one_and_two_ranks_apply_the_same_h2_air_load(tmp_path, cache):
             "load.T0=300", "load.room_length=0.02", "load.duration=1e-4", "mesh.size=0.004", "time.end=1e-5",
             "output.every=1", "output.fields=0", "output.figures=false"]
     args = ["-m", "dolfrag.cli", "run", "sound-bar", "--quiet", *(x for s in sets for x in ("--set", s))]
-    assert not gas.cache_file(gas.cache_key(0.2, 300.0, ATM)).exists()
+    assert not gas.cache_file(gas.cache_key(Mixture(0.2), 300.0, ATM)).exists()
     mpirun([*args, "--out", tmp_path / "two"], n=2)
     mpirun([*args, "--out", tmp_path / "one"], n=1)
     rows = {r: np.genfromtxt(tmp_path / r / "history.csv", delimiter=",", names=True) for r in ("one", "two")}
     np.testing.assert_array_equal(rows["one"]["load_Pa"], rows["two"]["load_Pa"])
     load = load_case("sound-bar", sets).load
-    state = gas.explosion(0.2, 300.0, ATM)
+    state = gas.explosion(Mixture(0.2), 300.0, ATM)
     assert rows["one"]["load_Pa"][0] == pytest.approx(state.P_reflected_Pa - ATM, rel=0.05)  # the spike
     assert np.ptp(rows["one"]["load_Pa"]) > 0.3 * rows["one"]["load_Pa"][0]  # it decays over the run
     for r in ("one", "two"):
