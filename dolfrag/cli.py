@@ -11,7 +11,10 @@
 results/<case name>/load.png) and prints the PNG path, then the signal's peak (Pa)
 and its time (s), impulse (Pa s) and duration (s) as `name = value` lines; for an
 h2-air load also the gas states behind it (AICC, CJ detonation, reflected pressure,
-Taylor plateau, burnt-gas sound speed, acoustic frequency) beside published values.
+Taylor plateau, burnt-gas sound speed, acoustic frequency) beside published values. A
+charge is applied on the meshed boundary (the mesh is built): p(t) at the nearest and
+farthest loaded facets and the face's mean, maps of peak pressure and impulse, and the
+charge's numbers (TNT mass, Z range, the blast at both facets).
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
 and one line naming the key, the value and what is allowed. `run` refuses an --out
@@ -84,6 +87,9 @@ def _plot_load(case, out, comm):
     from dolfrag.post.figures import signal_png
     if case.load.kind != "pressure":
         raise CaseError(f"load.kind = {case.load.kind!r}: no pressure signal to plot (only load.kind = 'pressure')")
+    if case.load.signal == "charge":
+        _plot_charge(case, out, comm)
+        return
     peak, peak_time, impulse, duration = loads.signal_summary(case.load)
     path = Path(out or f"results/{case.name}/load.png")
     if comm.rank == 0:
@@ -95,6 +101,30 @@ def _plot_load(case, out, comm):
               f"impulse_Pa_s = {impulse:.6g}\nduration_s = {duration:.6g}")
         if case.load.signal == "h2-air":
             print(_h2_air_lines(loads.h2_air_numbers(case.load)))
+
+
+def _plot_charge(case, out, comm):
+    """Build the mesh, apply the charge on it (loads.charge_load), draw charge_png and print
+    the path and the charge's numbers as `name = value` lines (SI)."""
+    from dolfrag import mesh, space as spaces
+    from dolfrag.loads.charge_load import ChargeLoad
+    from dolfrag.post.figures import charge_png
+    domain = mesh.build(case.geometry, case.mesh.size, comm, max_cells=case.run.max_cells)
+    charge = ChargeLoad(case.load, spaces.create(domain), domain, comm)
+    path = Path(out or f"results/{case.name}/load.png")
+    if comm.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    block = charge.summary()
+    charge_png(charge, case.time.end, path, comm,
+               f"{block['mass_kg']:g} kg {block['explosive']} ({block['tnt_mass_kg']:.3g} kg TNT), {block['burst']}, "
+               f"on '{case.load.boundary}'")
+    if comm.rank == 0:
+        lines = [str(path)] + [f"{name} = {value:.6g}" for name, value in block.items()
+                               if isinstance(value, float)]
+        for point in ("nearest", "farthest"):
+            lines += [f"{point}.{name} = {value:.6g}" for name, value in block[point].items()
+                      if isinstance(value, float)]
+        print("\n".join(lines))
 
 
 def _h2_air_lines(numbers):

@@ -24,7 +24,7 @@ Example::
 
     [load]
     boundary = "left"
-    signal = "triangular"        # | "friedlander" | "deflagration" | "detonation" | "h2-air" | "table"
+    signal = "triangular"        # | "friedlander" | "deflagration" | "detonation" | "h2-air" | "table" | "charge"
     peak = 1.0e6                 # Pa, positive pushes into the body
     rise = 1.0e-5                # s
     duration = 2.0e-5            # s
@@ -60,10 +60,12 @@ import numpy as np
 
 from dolfrag import bunker, concrete, mixture
 from dolfrag.interface.models import LAWS as _LAW_REGISTRY, law as _law
+from dolfrag.loads.charge import BURSTS
+from dolfrag.loads.explosives import EQUIVALENCES, EQUIVALENTS, EXPLOSIVES, SOURCE as EXPLOSIVES_SOURCE
 
 GEOMETRY_KINDS = ("rectangle", "box", "bunker", "file")
 HYPOTHESES = ("plane_strain", "plane_stress")
-SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", "table")
+SIGNALS = ("triangular", "friedlander", "deflagration", "detonation", "h2-air", "table", "charge")
 REGIMES = ("deflagration", "detonation")  # of an h2-air explosion
 OXIDIZERS = tuple(mixture.OXIDIZERS)  # of an h2-air explosion's hydrogen
 DILUENTS = tuple(mixture.DILUENTS)    # of an oxygen mixture
@@ -224,6 +226,7 @@ _DETONATION = ("signal", "detonation")
 _H2_AIR = ("signal", "h2-air")
 _REVERBERATING = _DETONATION + ("h2-air",)
 _OXYGEN = ("oxidizer", "oxygen")
+_CHARGE = ("signal", "charge")
 _GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.h2_air_shape)
 _RCCM = ("law", "rccm")
 _STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
@@ -335,7 +338,7 @@ class Interface:
 @dataclass(frozen=True)
 class Load:
     """[load]: pressure p(t) on one boundary, positive pushes into the body (the formulas:
-    dolfrag/loads.py, docs/loads.md), or a uniform stretch along x.
+    dolfrag/loads/, docs/loads.md), or a uniform stretch along x.
 
     kind "stretch" (the expanding bar, docs/method.md): the body starts unstressed with
     the velocity v_x = strain_rate (x - x_mid), v_y = 0 (x_mid: the middle of its x extent
@@ -356,7 +359,10 @@ class Load:
     `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`
     (detonation; defaults loads.h2_air_shape).
     table: p(t) from a CSV file (columns t [s], p [Pa]), parsed into `t` and `p`.
-    Spatial profile: uniform, or region_factor x p(t) on the facets whose midpoint is in the
+    charge: `mass` kg of `explosive` at `position`, a free-air or surface `burst`: every
+    loaded facet its own Friedlander positive phase from the Kingery-Bulmash fits at its
+    distance and angle of incidence (dolfrag/loads/charge.py, docs/loads.md).
+    Spatial profile (all but charge): uniform, or region_factor x p(t) on the facets whose midpoint is in the
     box [region_min, region_max] (give all three keys or none).
     """
     kind: str = _f("str", "pressure", choices=LOAD_KINDS)            # one of LOAD_KINDS
@@ -403,6 +409,13 @@ class Load:
     # length of the room along which the burnt gas resonates, f = c_b / (2 room_length)
     room_length: float | None = _f("float", bounds="> 0", unit="m", when=_H2_AIR)
     file: Path | None = _f("path", when=("signal", "table"))         # absolute Path of the CSV
+    # charge: its mass, explosive (TNT equivalent by peak pressure or impulse, loads.explosives),
+    # centre (gdim coordinates) and burst (free_air: spherical; surface: hemispherical on the ground)
+    mass: float | None = _f("float", bounds="> 0", unit="kg", when=_CHARGE)
+    explosive: str | None = _f("str", "TNT", choices=EXPLOSIVES, when=_CHARGE)
+    equivalence: str | None = _f("str", "pressure", choices=EQUIVALENCES, when=_CHARGE)
+    position: tuple[float, ...] | None = _f("point", unit="m", when=_CHARGE)
+    burst: str | None = _f("str", choices=BURSTS, when=_CHARGE)
     region_min: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # lower corner of the box
     region_max: tuple[float, ...] | None = _f("point", None, unit="m", when=_PRESSURE)  # upper corner
     region_factor: float | None = _f("float", None, bounds=">= 0", when=_PRESSURE)      # p inside / p outside
@@ -577,6 +590,9 @@ def _check(case: Case) -> None:
     if law.C_T is not None and law.shear_ratio is not None:
         raise CaseError(f"interface.C_T = {law.C_T:g} Pa/m, interface.shear_ratio = {law.shear_ratio!r}: "
                         "give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
+    if case.time.scheme == "theta" and load.signal == "charge" and case.time.dt is None:
+        raise CaseError("time.dt: missing (required when time.scheme is 'theta' and load.signal is 'charge': "
+                        "the charge's shortest positive phase is known only on the mesh), s")
     if case.time.scheme == "theta" and not _law(law).theta:
         raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
@@ -731,6 +747,8 @@ def _check_load(load: Load, geometry: Geometry) -> None:
     """Rules linking the keys of [load] (and the region to the geometry's dimension)."""
     if load.signal == "h2-air":
         _check_h2_air(load)
+    if load.signal == "charge":
+        _check_charge(load, geometry)
     if load.signal == "deflagration" or (load.signal == "h2-air" and load.regime == "deflagration"):
         if load.rise <= 0:
             raise CaseError(f"load.rise = {load.rise!r}: must be > 0 for a deflagration (s)")
@@ -771,6 +789,20 @@ def _check_load(load: Load, geometry: Geometry) -> None:
         if not all(lo < hi for lo, hi in zip(load.region_min, load.region_max)):
             raise CaseError(f"load.region_max = {_show(list(load.region_max))}: every coordinate must "
                             f"be > load.region_min = {_show(list(load.region_min))} (m)")
+
+
+def _check_charge(load: Load, geometry: Geometry) -> None:
+    """A charge: its centre has the geometry's dimension, its explosive the equivalence
+    asked, and no region (its own distances shape the load)."""
+    if geometry.tdim is not None and len(load.position) != geometry.tdim:
+        raise CaseError(f"load.position = {_show(list(load.position))}: must have {geometry.tdim} coordinates (m), "
+                        f"one per axis of the {geometry.tdim}D geometry")
+    if EQUIVALENTS[load.explosive][EQUIVALENCES.index(load.equivalence)] is None:
+        raise CaseError(f"load.equivalence = {load.equivalence!r}: {load.explosive} has no {load.equivalence} "
+                        f"equivalence in {EXPLOSIVES_SOURCE}; allowed: 'pressure'")
+    if load.region_factor is not None:
+        raise CaseError(f"load.region_factor = {load.region_factor!r}: a charge's pressure follows from each "
+                        "facet's distance and angle; remove the region keys")
 
 
 def _check_h2_air(load: Load) -> None:

@@ -17,6 +17,7 @@ from dolfrag.config import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
 from dolfrag.interface.stars import Stars
+from dolfrag.loads.charge_load import ChargeLoad
 from dolfrag.solver.theta import accuracy_time_step
 from dolfrag.stretch import end_components
 
@@ -26,8 +27,9 @@ class Problem:
     """case: config.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
     mass m, stiffness K, dt_crit s); rebars: rebar.Rebars or None; links, jump, stars:
     interface/; held: flat local components held by the supports (a stretch's ends
-    included); load: Function of nodal forces per pascal; pressure: p(t) (Pa); h: the time
-    step (s), n_steps of it to case.time.end."""
+    included); load: Function of nodal forces per pascal, or for a charge its
+    loads.charge_load.ChargeLoad (a p(t) per facet); pressure: p(t) (Pa), for a charge the
+    mean over the loaded boundary; h: the time step (s), n_steps of it to case.time.end."""
     case: object
     comm: object
     domain: object
@@ -99,7 +101,10 @@ class Problem:
         if case.time.scheme == "imex" and viscosity.applies(case):  # its linear term lowers the stable step
             bulk_ops.dt_crit *= viscosity.step_factor()
         h, n_steps = _time_step(case, bulk_ops.dt_crit)
-        if case.load.kind == "pressure":
+        if case.load.signal == "charge":
+            load = ChargeLoad(case.load, space, domain, comm)
+            pressure = load.mean_pressure
+        elif case.load.kind == "pressure":
             load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
             pressure = loads.signal(case.load, comm)
         else:

@@ -1,4 +1,4 @@
-"""Explosion signals (loads.py, docs/loads.md): peak, duration, impulse and oscillation of each
+"""Explosion signals (dolfrag/loads/, docs/loads.md): peak, duration, impulse and oscillation of each
 signal against closed forms; the local over-pressure region; [load] validation; `dolfrag loads`."""
 import re
 

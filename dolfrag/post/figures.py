@@ -320,6 +320,40 @@ def signal_png(signal, t_end, path, comm, title=""):
     plt.close(fig)
 
 
+def charge_png(charge, t_end, path, comm, title=""):
+    """A charge's load (loads.charge_load.ChargeLoad): p(t) over [0, t_end] s at the nearest
+    and farthest loaded facets and the mean over the loaded boundary, then maps of each
+    facet's peak pressure and positive impulse, on the two axes along which the loaded
+    facets spread most. Collective; rank 0 draws."""
+    plt = _pyplot(comm, path)
+    if plt is None:
+        return
+    f = charge.facets
+    near, far = charge.extremes()
+    t = np.linspace(0.0, t_end, 2001)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), layout="constrained")
+    for index, name in ((near, "nearest"), (far, "farthest")):
+        axes[0].plot(TIME_SCALE * t, 1e-6 * charge.point_pressure(index)(t),
+                     label=f"{name}: R = {f['R'][index]:.3g} m, Z = {f['Z'][index]:.3g} m/kg^(1/3)")
+    axes[0].plot(TIME_SCALE * t, 1e-6 * charge.mean_pressure(t), "k--", label="mean over the face")
+    axes[0].set_xlabel(f"time t ({TIME_UNIT})")
+    axes[0].set_ylabel("pressure p (MPa), > 0 pushes in")
+    axes[0].set_xlim(0.0, TIME_SCALE * t_end)
+    axes[0].legend(fontsize="small")
+    axes[0].grid(alpha=0.3)
+    a, b = np.argsort(np.ptp(f["x"], axis=0))[::-1][:2]
+    for ax, values, label in ((axes[1], 1e-6 * f["P"], "peak reflected pressure P_r (MPa)"),
+                              (axes[2], 1e-3 * f["i"], "reflected impulse i_r (kPa s)")):
+        dots = ax.scatter(f["x"][:, a], f["x"][:, b], c=values, s=6, cmap="viridis")
+        fig.colorbar(dots, ax=ax, label=label)
+        ax.set_xlabel(f"{'xyz'[a]} (m)")
+        ax.set_ylabel(f"{'xyz'[b]} (m)")
+        ax.set_aspect("equal")
+    fig.suptitle(title)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def _pyplot(comm, path):
     """matplotlib.pyplot (Agg) on rank 0; None elsewhere or without matplotlib."""
     if comm.rank != 0:

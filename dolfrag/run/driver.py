@@ -239,7 +239,7 @@ def _header(case, problem, integ, comm):
             "links": comm.allreduce(len(problem.links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
             "steps": problem.n_steps, "dt_s": integ.h, "dt_crit_s": problem.dt_crit,
             "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
-            **({"load": loads.summary_block(case.load)} if case.load.kind == "pressure" else {}),
+            **({"load": loads.summary_block(case.load, problem.load)} if case.load.kind == "pressure" else {}),
             "status": "running"}
 
 

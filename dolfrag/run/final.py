@@ -5,9 +5,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dolfrag import loads
 from dolfrag.post import fragment_sizes, fragment_table
-from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, exploded, figure_title,
+from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, charge_png, exploded, figure_title,
                                   fragment_masses_png, signal_png)
 from dolfrag.post.output import dof_damage
 
@@ -84,6 +83,9 @@ def common_figures(ctx, folder, final):
                     note=f"each fragment coloured by its mean speed, moved apart by {EXPLODE:g} x its centroid offset")
     fragment_masses_png(final.table.mass[~final.table.held], final.summary["fragments"]["size_distribution"],
                         folder / "fragment_masses.png", ctx.comm, f"fragments no support holds ({title})")
-    if case.load.kind == "pressure":
-        signal_png(loads.signal(case.load), case.time.end, folder / "load.png", ctx.comm,
+    if case.load.signal == "charge":
+        charge_png(ctx.problem.load, case.time.end, folder / "load.png", ctx.comm,
+                   f"charge on '{case.load.boundary}' ({case.name})")
+    elif case.load.kind == "pressure":
+        signal_png(ctx.problem.pressure, case.time.end, folder / "load.png", ctx.comm,
                    f"load on '{case.load.boundary}' ({case.name})")

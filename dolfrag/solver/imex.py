@@ -24,6 +24,7 @@ increments to their owners.
 import numpy as np
 
 from dolfrag import compat, viscosity as bulk_viscosity
+from dolfrag.loads.nodal import nodal_load
 from dolfrag.solver import elastic_kernel
 from dolfrag.solver.energy import global_energies
 from dolfrag.solver.semismooth import StarNewton, step_stiffness
@@ -65,7 +66,9 @@ class Imex:
 
     space, bulk, jump: from space.py, bulk.py, interface/jumps.py; step: the interface
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
-    nodal forces per pascal; pressure: p(t) in Pa; h: time step (s); rebars: rebar.Rebars
+    nodal forces per pascal, times pressure p(t) (Pa), or a load applied per facet
+    (loads.charge_load.ChargeLoad; pressure then its mean, for the history); h: time step
+    (s); rebars: rebar.Rebars
     or None. The bars are explicit, like the bulk: their forces need every ghost
     displacement, so with bars each step ends with a forward scatter of u. viscosity:
     viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}). strength:
@@ -90,9 +93,7 @@ class Imex:
         # updated here: owned components, plus the ghost ones of this rank's stars
         self.star_ghosts = comps[comps >= self.owned.stop]
         self.star_shared = self._shared(comps)
-        g = load.x.array[self.owned]
-        self.loaded = np.flatnonzero(g)
-        self.g_load = g[self.loaded]
+        self.load = nodal_load(load, pressure, self.owned)
         self.m = bulk.m.x.array
         self.t, self.n = 0.0, 0
         self.work = 0.0
@@ -161,13 +162,13 @@ class Imex:
         own, timer = self.owned, self.timer
         timer.start()
         Ku = self.bulk.K_cells @ u[own]
-        p = float(self.pressure(self.t))
+        load = self.load.forces(self.t)
         np.negative(Ku, out=f[own])
         if self.rebars is not None:
             if energies:  # u_n, for the bars' energy at the end of the step
                 np.copyto(self._u_n, u)
             f[own] += self.rebars.forces(u, commit=True)[0][own]
-        f[own][self.loaded] += p * self.g_load
+        f[own][self.load.rows] += load
         if self.viscosity is not None:
             self.viscosity.add_force(v, f)
         timer.lap("bulk")
@@ -189,7 +190,7 @@ class Imex:
         timer.lap("communication")
         dv[self.star_shared] = mine
 
-        v_old_loaded = v[own][self.loaded]
+        v_old_loaded = v[own][self.load.rows]
         v[own] += dv[own]
         u[own] += h * v[own]
         ghosts = self.star_ghosts
@@ -201,7 +202,7 @@ class Imex:
         if self.rebars is not None:
             compat.scatter_forward(self.u)
             timer.lap("communication")
-        self.work += p * h * self.g_load @ (v[own][self.loaded] + v_old_loaded) / 2
+        self.work += h * load @ (v[own][self.load.rows] + v_old_loaded) / 2
         self.t += h
         self.n += 1
         timer.lap("update")

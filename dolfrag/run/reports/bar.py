@@ -26,8 +26,8 @@ class BarReport(FragmentTimes):
     STATE = (*FragmentTimes.STATE, "probe")
 
     @staticmethod
-    def applies(case):
-        return free_end(case) is not None
+    def applies(case):  # a charge's spherical wave is not the bar's plane one
+        return free_end(case) is not None and case.load.signal != "charge"
 
     def __init__(self, ctx):
         super().__init__(ctx, {shpb.MEASURE_TIME} if ctx.case.time.end >= shpb.MEASURE_TIME else set())

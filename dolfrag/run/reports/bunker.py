@@ -3,7 +3,7 @@ and the ``bunker`` block: its peak against thin plates of the panel, and the fre
 of every wall and the roof (post/bunker.py)."""
 import numpy as np
 
-from dolfrag import bunker, loads
+from dolfrag import bunker
 from dolfrag.post import bunker as post
 from dolfrag.post.figures import DAMAGE_RANGE, broken_mesh_png, deflection_png, figure_title
 from dolfrag.post.wall import peak
@@ -45,7 +45,7 @@ class BunkerReport:
         ctx = self.ctx
         self._opened(folder, final)
         t = np.asarray(self.deflection[0])
-        pressure = loads.signal(ctx.case.load)(t)
+        pressure = ctx.problem.pressure(t)
         plates = final.summary["bunker"]["long_wall"]["plate_per_pressure"]
         deflection_png(t, self.deflection[1], (t, pressure * plates["clamped_m_Pa"]), folder / "deflection.png",
                        ctx.comm, f"long wall centre deflection ({ctx.case.name})", None,

@@ -6,7 +6,7 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import analytic, loads
+from dolfrag import analytic
 from dolfrag.post import wall
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
                                   wave_png)
@@ -46,8 +46,9 @@ def midspan(space, section, size):
     return space.gdim * dofs + section.thickness_axis
 
 
-def estimates(case, C_N, tensile_strength, section):
-    """post.wall.estimates (block, bending history) for a wall case: the 1D wave speed is the
+def estimates(case, pressure, C_N, tensile_strength, section):
+    """post.wall.estimates (block, bending history) for a wall case under ``pressure`` p(t)
+    (Pa; problem.Problem.pressure: a charge's mean over the face): the 1D wave speed is the
     uniaxial-strain (P-wave) modulus in series with the interface springs, one per mesh size
     (analytic.py; the unstructured mesh is measured a few per cent softer still,
     docs/validation.md)."""
@@ -57,7 +58,7 @@ def estimates(case, C_N, tensile_strength, section):
     sup = case.supports
     kind = "clamped" if sup.clamped else "simple" if sup.simple else None
     bends_in_plane_strain = np.ndim(section.span) or mat.hypothesis == "plane_strain"  # a slab: always nu
-    return wall.estimates(loads.signal(case.load), case.time.end, analytic.wave_speed(M, mat.rho), mat.rho, mat.E,
+    return wall.estimates(pressure, case.time.end, analytic.wave_speed(M, mat.rho), mat.rho, mat.E,
                           tensile_strength, section.thickness, section.span,
                           kind, mat.nu if bends_in_plane_strain else 0.0)
 
@@ -103,7 +104,8 @@ class WallReport:
                                     h=ctx.case.mesh.size, **section._asdict())
         summary["wall"] = comm.bcast(block, root=0)
         strength = ctx.problem.law.tensile_strength(ctx.case.interface, integ.model.C_N)
-        summary["wall"]["estimates"], self._bending = estimates(ctx.case, integ.model.C_N, strength, section)
+        summary["wall"]["estimates"], self._bending = estimates(ctx.case, ctx.problem.pressure, integ.model.C_N,
+                                                                strength, section)
 
     def figures(self, folder, final):
         ctx, section = self.ctx, self.section

@@ -5,7 +5,7 @@ algebra: solver/sparse_system.py; the tuning: solver/options.NewtonOptions).
 Energy. With D the link stiffness at the converged point (piecewise constant: contact keeps
 g_N >= 0 at the ends of the steps), the step obeys exactly
 
-    Delta(1/2 v.M v + 1/2 u.K u + psi(g)) + D_contact + D_num = p_theta l.(u_{n+1} - u_n)
+    Delta(1/2 v.M v + 1/2 u.K u + psi(g)) + D_contact + D_num = l_theta.(u_{n+1} - u_n)
     D_contact = -sum w r.(g_{n+1} - g_n) >= 0   (inelastic impacts, friction)
     D_num = (theta - 1/2) (x.M x + du.K du + sum w dg.D dg) >= 0,  du = u_{n+1} - u_n
 
@@ -40,6 +40,7 @@ from dolfrag.solver.energy import global_energies, reaction_work
 from dolfrag.solver.interrupt import StepInterrupted
 from dolfrag.solver.options import NewtonOptions
 from dolfrag.solver.sparse_system import LinearSolveError, SparseSystem
+from dolfrag.loads.nodal import nodal_load
 from dolfrag.solver.theta.residual import ThetaResidual
 from dolfrag.timing import PhaseTimer
 
@@ -88,7 +89,8 @@ class Theta:
 
     space, bulk, jump: from space.py, bulk.py, interface/jumps.py; model: an interface model
     (interface/models.py: Elastic springs, or a law with damage, contact and friction);
-    load: Function of nodal forces per pascal; pressure: p(t) in Pa; h: time step (s), any
+    load, pressure: as in Imex (a load vector per pascal times p(t) in Pa, or a load applied
+    per facet); h: time step (s), any
     size (the scheme is unconditionally stable); theta in [1/2, 1]; constrained: flat local
     dof components held at zero (supports.constrained_components, or a boolean mask such as
     Stars.constrained); options: solver/options.NewtonOptions. Collective.
@@ -115,6 +117,7 @@ class Theta:
         self.timer = PhaseTimer()
         self.u, self.v = compat.Function(space.V), compat.Function(space.V)
         self.u.name, self.v.name = "displacement", "velocity"
+        load = nodal_load(load, pressure, slice(0, space.n_owned_dofs * space.gdim))
         res = self.residual = ThetaResidual(space, bulk, jump, model, load, theta, constrained, rebars, self.u,
                                             self.v, options.rtol, options.regularisation)
         self.owned, self.m, self.contact = res.owned, res.m, res.contact
@@ -193,7 +196,7 @@ class Theta:
 
     def _step_data(self, h):
         """The residual.Step of an attempt of length h from the current state."""
-        return self.residual.step_data(h, self.t, self.pressure, self._g, self.options.regularisation)
+        return self.residual.step_data(h, self.t, self._g, self.options.regularisation)
 
     def _evaluate(self, step, x, r):
         return self.residual.evaluate(step, x, r)
@@ -288,7 +291,7 @@ class Theta:
         self.numerical += (th - 0.5) * (x @ (self.m[own] * x) + du[own] @ (self.bulk.K_cells @ du[own]) + spring_work)
         if self.rebars is not None:
             self.numerical += self._accept_bars(point.bars, du)
-        self.work += step.p_theta * self.residual.load_vector @ du[own]
+        self.work += step.load_theta @ du[own]
         if self.contact:
             g = point.g_end
             state = self.model.cohesion(g[:, 0], g[:, 1:], step.state_n, r[:, 0]).state

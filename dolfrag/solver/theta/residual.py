@@ -7,7 +7,7 @@ step's contact impulse:
 
     M x = h f_theta + h B^T w R^T r
     u_{n+1} = u_n + h (theta v_{n+1} + (1 - theta) v_n) = u_n + h (v_n + theta x)
-    f_theta = p_theta l - K u_theta - B^T w R^T t(g_theta)
+    f_theta = l_theta - K u_theta - B^T w R^T t(g_theta)
     phi(r, g_{n+1}, g_{n+1} - g_n) = 0
 
 u_theta = theta u_{n+1} + (1 - theta) u_n; g = R B u the link jumps in the link frames R
@@ -16,7 +16,8 @@ with its damage lagged by one step (interface/models.py: each step problem is mo
 plus the bars' step forces C^T (N m) when there are rebars (rebar.py: the mean force over
 the step's strain path along the mean chord, a discrete gradient; its tangent in u_{n+1},
 material and geometric, not symmetric, joins the matrix);
-p_theta = theta p(t_{n+1}) + (1 - theta) p(t_n) the pressure on the load vector l; phi the
+l_theta = theta l(t_{n+1}) + (1 - theta) l(t_n) the nodal forces of the load (for a
+uniform pressure l(t) = p(t) times the load vector; loads/nodal.py); phi the
 Alart-Curnier projection (interface/contact.py): Signorini on the end-of-step gap, Coulomb
 with mu(state_n) on the step's slip, no penalty. With linear forces Newton's matrix is
 W = M + theta^2 h^2 (K + B^T w D B), D the link stiffness: a global sparse operator (K
@@ -42,8 +43,8 @@ class Step:
     the jumps g_n (n, d) m of the step's start, and the regularisation of the redundant rows
     of links in contact (ThetaResidual.values)."""
 
-    def __init__(self, h, p_theta, state_n, rho, sigma, g_n, regularisation):
-        self.h, self.p_theta, self.state_n, self.rho, self.sigma = h, p_theta, state_n, rho, sigma
+    def __init__(self, h, load_theta, state_n, rho, sigma, g_n, regularisation):
+        self.h, self.load_theta, self.state_n, self.rho, self.sigma = h, load_theta, state_n, rho, sigma
         self.g_n, self.regularisation = g_n, regularisation
         self.mu = self.shift = self.cohesion_T = None
 
@@ -62,7 +63,7 @@ class Point:
 
 class ThetaResidual:
     """The step problem on space, bulk, jump (space.py, bulk.py, interface/jumps.py) with an
-    interface model, the load vector (Function, N per Pa), theta, the held components
+    interface model, the nodal load (loads/nodal.py), theta, the held components
     ``constrained`` (flat local indices or a boolean mask), the bars (rebar.Rebars or None)
     and the state u, v (Functions: u_n, v_n, owned by the integrator); rtol: the tolerance
     on the scaled residual; regularisation: on the reaction diagonal of sticking links, whose
@@ -77,7 +78,7 @@ class ThetaResidual:
         n_x = space.n_owned_dofs * d
         self.owned = slice(0, n_x)
         self.m = bulk.m.x.array
-        self.load_vector = load.x.array[self.owned].copy()  # N per Pa
+        self.load = load
         self.contact = not isinstance(model, models.Elastic)
         links = jump.links
         self.frame = links.frames()  # (n, d, d)
@@ -150,14 +151,16 @@ class ThetaResidual:
         return blocks
 
     # ------------------------------------------------------------------ one iterate
-    def step_data(self, h, t, pressure, g_n, regularisation):
-        """The Step of an attempt of length h from time t (s), pressure p(t) (Pa), jumps g_n."""
+    def step_data(self, h, t, g_n, regularisation):
+        """The Step of an attempt of length h from time t (s), jumps g_n; its load forces
+        load_theta (owned components, N) theta l(t + h) + (1 - theta) l(t)."""
         th = self.theta
         if hasattr(self.model, "h"):
             self.model.h = h  # the viscous damage update integrates over the step actually taken
         state_n = self.model.state_at(np.arange(len(self.w))) if self.contact else None
-        p_theta = th * float(pressure(t + h)) + (1 - th) * float(pressure(t))
-        step = Step(h, p_theta, state_n, self.m_link / (th * h * h * self.w), self.m_link / (h * self.w), g_n,
+        load_theta = np.zeros(self.owned.stop)
+        load_theta[self.load.rows] = th * self.load.forces(t + h) + (1 - th) * self.load.forces(t)
+        step = Step(h, load_theta, state_n, self.m_link / (th * h * h * self.w), self.m_link / (h * self.w), g_n,
                     regularisation)
         if self.contact:
             step.mu, step.shift = self.model.friction(state_n), self.model.shift(state_n)
@@ -201,7 +204,7 @@ class ThetaResidual:
             f -= self.rebars.step_forces(point.bars, counted_only=True)
         compat.scatter_reverse_add(self.force)
         inertia = self.m[own] * x
-        load = h * step.p_theta * self.load_vector
+        load = h * step.load_theta
         elastic = h * (self.bulk.K_cells @ (self.u.x.array[own] + th * du[own]))
         interface = h * f[own]
         R_m = np.where(self.fixed[own], 0.0, inertia - load + elastic + interface)

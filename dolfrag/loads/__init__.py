@@ -6,7 +6,10 @@ A positive pressure pushes into the body: the traction on the loaded boundary is
 Each signal is a pure function of its parameters (SI units) returning a vectorised p(t),
 t in s (a float or an array), zero before t = 0 and after the signal's end (docs/loads.md).
 The spatial profile is uniform on the loaded boundary, optionally times ``factor`` in a box
-(a local over-pressure): one load vector times one signal.
+(a local over-pressure): one load vector times one signal. A charge is the exception: each
+loaded facet gets its own p(t) from its distance to the charge (charge.py: the airblast
+fits; charge_load.py: on the mesh), so the functions here that take one config.Load
+signal refuse it.
 
 An "h2-air" load is the deflagration or detonation shape with its levels computed from the
 gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, dolfrag/gas.py): the functions
@@ -193,8 +196,15 @@ def h2_air_numbers(load):
     return numbers
 
 
+def _one_signal(load):
+    """ValueError for a charge, whose p(t) differs per facet (charge_load.ChargeLoad)."""
+    if load.signal == "charge":
+        raise ValueError("a charge has one p(t) per loaded facet: build charge_load.ChargeLoad on the mesh")
+
+
 def signal(load, comm=None):
     """The p(t) (Pa, vectorised over t in s) of a config.Load; ``comm`` as in h2_air_shape."""
+    _one_signal(load)
     load = h2_air_shape(load, comm)
     kind = load.signal
     if kind == "triangular":
@@ -212,6 +222,7 @@ def signal(load, comm=None):
 
 def signal_end(load):
     """Time (s) after which the signal of a config.Load is zero."""
+    _one_signal(load)
     return float(load.t[-1]) if load.signal == "table" else load.duration
 
 
@@ -220,6 +231,7 @@ def shortest_feature(load):
     resolve: a rise or a decay, a table interval, an oscillation's half period (crest to
     trough, as a triangle's rise), the Friedlander initial fall t_d / (1 + alpha) (the time
     its initial slope takes to reach 0), a local peak's rise w / 2; inf if none is > 0."""
+    _one_signal(load)
     load = h2_air_shape(load)
     kind = load.signal
     if kind == "table":
@@ -252,10 +264,13 @@ def signal_summary(load):
     return float(p[i]), float(t[i]), float(np.trapz(p, t)), end
 
 
-def summary_block(load):
+def summary_block(load, applied=None):
     """summary.json's "load" block of a pressure config.Load: its signal's peak (Pa), time of
     the peak (s), impulse (Pa s) and end (s) (signal_summary), and for h2-air the numbers
-    behind it (``h2_air``: h2_air_numbers)."""
+    behind it (``h2_air``: h2_air_numbers); for a charge, ``applied.summary()`` (its
+    charge_load.ChargeLoad)."""
+    if load.signal == "charge":
+        return applied.summary()
     peak, peak_time, impulse, end = signal_summary(load)
     block = {"signal": load.signal, "peak_Pa": peak, "peak_time_s": peak_time, "impulse_Pa_s": impulse,
              "duration_s": end}
