@@ -21,7 +21,7 @@ def run(case_name, end, out, overrides):
     import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
     from dolfrag.config import load_case
     from dolfrag.problem import Problem
-    from dolfrag.run.driver import prepare
+    from dolfrag.runner.driver import prepare
 
     case = load_case(case_name, [f"time.end={end}", *overrides])
     problem = Problem.build(case, MPI.COMM_SELF)

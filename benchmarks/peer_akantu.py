@@ -85,7 +85,7 @@ def run_dolfrag(mesh_path, overrides, out):
     from mpi4py import MPI
 
     from dolfrag.config import Geometry, load_case
-    from dolfrag.run.driver import run
+    from dolfrag.runner.driver import run
     case = load_case(CASE, [*overrides, "output.fields=0", "output.figures=false"])
     case = replace(case, geometry=Geometry(kind="file", file=Path(mesh_path).resolve(), dim=2))
     return run(case, out, quiet=True, comm=MPI.COMM_SELF)

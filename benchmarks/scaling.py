@@ -21,7 +21,7 @@ communication and output) against its cells n. The slab's points are 1-rank runs
 case shrunk laterally at the same mesh size. The bunker does not shrink without changing its
 physics: its points are its own mesh split over the measured rank counts (use --clock cpu, so
 that ranks beyond the cores count their own work only). owned_p, star_p
-(dolfrag.halo.Halo.star_cells), k (largest neighbour count), b (largest bytes sent or received
+(halo.Halo.star_cells), k (largest neighbour count), b (largest bytes sent or received
 per update): star partitions of the case's mesh into P parts on one process, scaled to N cells
 (b by the surface-to-volume law). c:
 DOLFINx's own cost per scatter beyond its messages (a 2-rank scatter less the ping-pong model).
@@ -43,7 +43,8 @@ from mpi4py import MPI
 
 import dolfrag  # BLAS thread limit, VTK before DOLFINx
 import dolfrag.timing
-from dolfrag import compat, halo, mesh, space as spaces
+import halo  # beside this script
+from dolfrag import compat, mesh, space as spaces
 from dolfrag.config import builtin_cases, load_case
 from dolfrag.timing import PHASES
 

@@ -32,7 +32,7 @@ import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
 from dolfrag import loads
 from dolfrag.config import load_case
 from dolfrag.problem import Problem
-from dolfrag.run.driver import integrator
+from dolfrag.runner.driver import integrator
 from dolfrag.solver.theta import Theta
 
 # gmsh puts about 2.33 A / h^2 triangles in an area A and 5.5 V / h^3 tetrahedra in a

@@ -30,6 +30,6 @@ except ImportError:
 __version__ = "0.1.0"
 
 
-# the one entry point, bound after the package's settings above; it is also the name of
-# the package dolfrag/run/, whose modules are imported as ``from dolfrag.run.x import y``
-from dolfrag.run.driver import run  # noqa: E402,F401
+# the one entry point, bound after the package's settings above (the machinery of a run is
+# the package dolfrag.runner)
+from dolfrag.runner.driver import run  # noqa: E402,F401

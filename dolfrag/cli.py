@@ -1,4 +1,4 @@
-"""The `dolfrag` command: a thin layer over dolfrag.run.
+"""The `dolfrag` command: a thin layer over dolfrag.runner.
 
     dolfrag run CASE [--out DIR] [--overwrite] [--set section.key=value ...] [--quiet]
     dolfrag run --resume DIR [--quiet]
@@ -43,8 +43,8 @@ from mpi4py import MPI
 
 from dolfrag import __version__, gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
-from dolfrag.run.driver import REPORT_ERRORS, run
-from dolfrag.run.signals import EXIT_CODES
+from dolfrag.runner.driver import REPORT_ERRORS, run
+from dolfrag.runner.signals import EXIT_CODES
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 

@@ -1,12 +1,15 @@
-"""Under mpirun: DOLFINx's own ghost layer of a star-partitioned mesh against dolfrag.halo,
+"""Under mpirun: DOLFINx's own ghost layer of a star-partitioned mesh against benchmarks/halo.py,
 which counts it from the cell owners alone (on rank 0). Writes an .npz on rank 0."""
 import sys
 
 import numpy as np
 from mpi4py import MPI
 
-from conftest import box, rectangle
-from dolfrag import compat, halo, mesh, space as spaces
+from conftest import ROOT, box, rectangle
+from dolfrag import compat, mesh, space as spaces
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import halo  # noqa: E402
 
 geometry = rectangle() if sys.argv[1] == "2d" else box()
 size = float(sys.argv[2])

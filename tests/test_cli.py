@@ -105,3 +105,12 @@ def test_imported_mesh_runs_with_its_own_boundary_names(tmp_path):
     result = dolfrag_cli("run", path, "--out", tmp_path / "out", "--quiet", *SMALL)
     assert result.returncode == 0, result.stderr
     assert "vx_impact_m_s" in (tmp_path / "out" / "history.csv").read_text().splitlines()[0]
+
+
+def test_the_entry_point_and_the_run_package_do_not_clash():
+    """``dolfrag.run`` is the function; the machinery of a run is the package
+    ``dolfrag.runner``, reachable as an attribute once imported."""
+    import dolfrag
+    import dolfrag.runner.loop
+    assert callable(dolfrag.run) and dolfrag.run is dolfrag.runner.driver.run
+    assert callable(dolfrag.runner.loop.time_loop)

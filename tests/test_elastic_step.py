@@ -7,7 +7,7 @@ from mpi4py import MPI
 
 from dolfrag.config import load_case
 from dolfrag.problem import Problem
-from dolfrag.run.driver import integrator
+from dolfrag.runner.driver import integrator
 
 BOX = ["geometry.kind=box", "geometry.length=0.03", "geometry.thickness=0.01",
        'supports.rollers=["bottom","top","front","back"]']

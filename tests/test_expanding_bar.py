@@ -12,7 +12,7 @@ from conftest import mpirun
 
 from dolfrag.config import load_case
 from dolfrag.problem import Problem
-from dolfrag.run.driver import prepare
+from dolfrag.runner.driver import prepare
 
 # The test size: 4 mm triangles (750), the case's 30 us (62 steps, ~5 s). The case runs 2 mm.
 SMALL = ["mesh.size=0.004", "output.fields=0", "output.figures=false"]

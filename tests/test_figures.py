@@ -14,8 +14,8 @@ from dolfrag import mesh, space as spaces
 from dolfrag.config import load_case
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, colour_range, figure_title, milliseconds,
                                   round_axis, tick_steps)
-from dolfrag.run import final
-from dolfrag.run.driver import run
+from dolfrag.runner import final
+from dolfrag.runner.driver import run
 
 
 def test_a_time_is_written_in_ms_to_three_significant_digits():

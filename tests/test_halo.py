@@ -1,12 +1,15 @@
-"""dolfrag.halo: ghost layers of star partitions, counted by hand on structured meshes and
+"""benchmarks/halo.py: ghost layers of star partitions, counted by hand on structured meshes and
 against DOLFINx's own distribution."""
 import itertools
+import sys
 
 import numpy as np
 import pytest
 
-from conftest import mpirun
-from dolfrag import halo
+from conftest import ROOT, mpirun
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import halo  # noqa: E402
 
 
 def grid_triangles(n):

@@ -10,7 +10,7 @@ from conftest import ROOT, mpirun
 
 from dolfrag.config import load_case
 from dolfrag.problem import Problem
-from dolfrag.run.driver import integrator, run
+from dolfrag.runner.driver import integrator, run
 
 RCCM_BAR = ROOT / "tests" / "cases" / "rccm-bar.toml"
 

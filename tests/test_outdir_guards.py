@@ -11,7 +11,7 @@ import dolfrag.mesh
 from conftest import ROOT, dolfrag_cli
 from dolfrag import guards
 from dolfrag.config import CaseError, load_case
-from dolfrag.run.driver import run
+from dolfrag.runner.driver import run
 
 SMALL = ["--set", "mesh.size=0.01", "--set", "time.end=2e-6", "--set", "output.fields=0",
          "--set", "output.figures=false", "--quiet"]

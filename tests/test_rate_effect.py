@@ -12,7 +12,7 @@ from dolfrag import concrete
 from dolfrag.config import CaseError, load_case
 from dolfrag.interface.rate import RateStrength
 from dolfrag.problem import Problem
-from dolfrag.run.driver import prepare
+from dolfrag.runner.driver import prepare
 from dolfrag.viscosity import shape_gradients
 
 # EN 1992-1-1 Table 3.1 as printed: f_ctm (MPa, one decimal) and E_cm (GPa, whole numbers)

@@ -9,8 +9,8 @@ import signal
 import pytest
 
 from dolfrag import cli
-from dolfrag.run import driver
-from dolfrag.run.reports.wall import WallReport
+from dolfrag.runner import driver
+from dolfrag.runner.reports.wall import WallReport
 
 # the wall section, 14 steps of the built-in case (about a second)
 WALL = ["run", "wall-bending-clamped", "--quiet", "--set", "time.end=2e-5", "--set", "output.fields=1"]

@@ -1,4 +1,4 @@
-"""Checkpoint, stop and resume (dolfrag/run/checkpoint.py, signals.py): a run stopped by
+"""Checkpoint, stop and resume (dolfrag/runner/checkpoint.py, signals.py): a run stopped by
 SIGTERM at a known step and resumed ends as the uninterrupted run, on 1 and 2 ranks, with
 each step once in history.csv and each snapshot once in fields.pvd; a theta or imex step too
 slow to finish before the launcher's kill is abandoned, and the last completed step

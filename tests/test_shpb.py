@@ -14,7 +14,7 @@ from dolfrag.config import load_case
 from dolfrag.post import shpb
 from dolfrag.post.figures import exploded
 from dolfrag.post.fragments import Fragments
-from dolfrag.run.driver import run
+from dolfrag.runner.driver import run
 from dolfrag.solver.semismooth import RTOL
 
 L, W = 0.12, 0.04  # m: the specimen, loaded on the left, free end at x = L

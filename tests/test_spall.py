@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from dolfrag import analytic, homogenise, loads
 from dolfrag.config import load_case
-from dolfrag.run.driver import run
+from dolfrag.runner.driver import run
 
 
 @pytest.fixture(scope="module")

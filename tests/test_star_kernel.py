@@ -14,7 +14,7 @@ from dolfrag.config import load_case
 from dolfrag.interface import laws, models
 from dolfrag.interface.contact import contact_friction_residual
 from dolfrag.problem import Problem
-from dolfrag.run.driver import integrator
+from dolfrag.runner.driver import integrator
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK
 from dolfrag.solver.star_kernel import FROZEN, REGULARISATION

@@ -5,7 +5,7 @@ from mpi4py import MPI
 
 from dolfrag.config import load_case
 from dolfrag.problem import Problem
-from dolfrag.run.driver import integrator
+from dolfrag.runner.driver import integrator
 
 
 def _integrator(predict):
@@ -49,7 +49,7 @@ def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
     """A checkpoint written before slip_dir held the projection scale (one column fewer)
     restores as held directions with scale 0, the kernel's meaning of that state, instead of
     an array the kernel would read past (star_kernel.piece_branches)."""
-    from dolfrag.run.checkpoint import restore_object
+    from dolfrag.runner.checkpoint import restore_object
     lay = _integrator(True).interface.layout
     n, d = lay.slip_dir.shape
     older = np.random.default_rng(0).normal(size=(n, d - 1))

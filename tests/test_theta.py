@@ -12,7 +12,7 @@ from dolfrag import loads
 from dolfrag.config import load_case
 from dolfrag.interface import models
 from dolfrag.problem import Problem
-from dolfrag.run.driver import run
+from dolfrag.runner.driver import run
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.options import NewtonOptions
 from dolfrag.solver.theta import ConvergenceError, Theta, accuracy_time_step

@@ -3,7 +3,7 @@
 A step of a cracking 3D structure may take longer than a launcher waits between its
 SIGTERM and its SIGKILL (Open MPI: 1 s by default, Slurm: 30 s). An integrator whose
 ``interrupt`` is set asks it during the step and gives the step up with StepInterrupted;
-the time loop then puts back the state it kept from before the step (run/loop.py).
+the time loop then puts back the state it kept from before the step (runner/loop.py).
 
 ``interrupt`` is an object with ``flag``, a one-element int8 array that the signal handler
 sets on its own rank and that compiled loops read, and ``pending()``, which tells every

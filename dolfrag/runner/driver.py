@@ -13,16 +13,16 @@ from dolfrag.config import Case, CaseError, load_case
 from dolfrag.post.output import RunOutput
 from dolfrag.problem import Problem
 from dolfrag.progress import Progress
-from dolfrag.run import checkpoint
-from dolfrag.run.breaks import BreakTimes
-from dolfrag.run.context import RunContext
-from dolfrag.run.fields import FieldSnapshots
-from dolfrag.run.final import common_figures, finish
-from dolfrag.run.fragment_times import RequestedFragments
-from dolfrag.run.history import History, Probes, RebarForce
-from dolfrag.run.loop import Guard, time_loop
-from dolfrag.run.reports import REPORTS
-from dolfrag.run.signals import Stop
+from dolfrag.runner import checkpoint
+from dolfrag.runner.breaks import BreakTimes
+from dolfrag.runner.context import RunContext
+from dolfrag.runner.fields import FieldSnapshots
+from dolfrag.runner.final import common_figures, finish
+from dolfrag.runner.fragment_times import RequestedFragments
+from dolfrag.runner.history import History, Probes, RebarForce
+from dolfrag.runner.loop import Guard, time_loop
+from dolfrag.runner.reports import REPORTS
+from dolfrag.runner.signals import Stop
 from dolfrag.solver.imex import Imex
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError

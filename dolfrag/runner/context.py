@@ -15,7 +15,7 @@ class Step(NamedTuple):
 class RunContext:
     """problem: problem.Problem; integ: its integrator; comm; out: the output folder (Path);
     stretch: stretch.Stretch or None; break_time (n_links,) s: when each owned link broke
-    (NaN while sound; kept by run/breaks.py)."""
+    (NaN while sound; kept by runner/breaks.py)."""
 
     def __init__(self, problem, integ, comm, out, stretch, break_time):
         self.problem, self.integ, self.comm, self.out = problem, integ, comm, out

@@ -3,7 +3,7 @@
 from dolfrag import analytic, homogenise, loads
 from dolfrag.post import shpb
 from dolfrag.post.fragments import breaks_by_time
-from dolfrag.run.fragment_times import FragmentTimes
+from dolfrag.runner.fragment_times import FragmentTimes
 
 
 def free_end(case):

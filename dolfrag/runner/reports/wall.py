@@ -10,7 +10,7 @@ from dolfrag import analytic
 from dolfrag.post import wall
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
                                   wave_png)
-from dolfrag.run.final import EXPLODE
+from dolfrag.runner.final import EXPLODE
 
 
 class WallSection(NamedTuple):

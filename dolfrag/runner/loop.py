@@ -1,11 +1,11 @@
 """The time loop: step the integrator, let the observers look, write a history row when
 one is due, checkpoint every output.checkpoint_every seconds of wall time and at the end,
-stop at the end of a step when a signal came (run/signals.py), or within a long step
+stop at the end of a step when a signal came (runner/signals.py), or within a long step
 (solver/interrupt.py): then back to the state before it."""
 import dataclasses
 from time import perf_counter
 
-from dolfrag.run.context import Step
+from dolfrag.runner.context import Step
 from dolfrag.solver.interrupt import StepInterrupted
 
 # s: a step that took this long makes the next ones abandonable midway. Open MPI's mpirun
@@ -17,7 +17,7 @@ GUARD_AFTER = 0.2
 
 class Guard:
     """What lets a step be abandoned: the integrator's ``interrupt`` set to the stop request
-    (run/signals.Stop) and the state before the step kept in memory (rewind, a
+    (runner/signals.Stop) and the state before the step kept in memory (rewind, a
     checkpoint.Rewind of what a step changes)."""
 
     def __init__(self, integ, stop, rewind):

@@ -1,6 +1,6 @@
 """SIGINT and SIGTERM stop a run on every rank together: at the end of the current step, or
 within a step that may take longer than a launcher waits after its SIGTERM, which is then
-abandoned (run/loop.py, solver/interrupt.py).
+abandoned (runner/loop.py, solver/interrupt.py).
 
 A handler only raises flags: ``signal`` for Python, ``flag`` for compiled loops. The time
 loop reduces the flags of all ranks once a step (``Stop.requested``); inside a step, theta's
