@@ -15,7 +15,7 @@ export OPENBLAS_NUM_THREADS := 1
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 
-.PHONY: install system-packages demo test bench peer clean
+.PHONY: install system-packages demo test check bench peer clean
 
 install: system-packages $(VENV)/.installed
 
@@ -42,6 +42,10 @@ demo: install
 
 test: install
 	$(PY) -m pytest -q -rs tests
+
+# The quick tier, after each change: neither the MPI tests nor the slow ones (whole case runs)
+check: install
+	$(PY) -m pytest -q -x -m "not slow and not mpi" tests
 
 bench: install
 	$(PY) benchmarks/step_cost.py

@@ -112,6 +112,7 @@ def slab(tmp_path_factory):
             read("fragments.csv"), read("debris.csv"), out)
 
 
+@pytest.mark.slow
 def test_fragments_csv_of_the_reduced_slab_sums_to_its_concrete_and_steel(slab):
     case, summary, frags, _, _ = slab
     g, bars = case.geometry, case.rebar

@@ -36,6 +36,7 @@ def table(stdout):
             if line.strip() and "steps" not in line and "rank(s)" not in line and "Energy balance" not in line]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(DEMOS))
 def test_demo_runs_serially_and_on_2_ranks_with_the_same_table(name, tmp_path):
     outputs = {}

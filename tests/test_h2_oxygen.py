@@ -60,6 +60,7 @@ def test_reflected_pressure_and_taylor_plateau_of_h2_o2_within_the_usual_estimat
     assert found.P_Taylor_Pa < found.P_AICC_Pa < found.P_CJ_Pa
 
 
+@pytest.mark.slow
 def test_gri_mech_past_3500_K_gives_the_numbers_of_nasa_glenn_data_fitted_to_6000_K(monkeypatch):
     """The hottest mixture allowed (stoichiometric H2-O2 at the coldest and densest initial
     state, 250 K and 2 bar: reflected gas at 4,184 K) computed with GRI-Mech's fits (to 3500

@@ -64,6 +64,7 @@ def test_a_refused_pair_says_why(name, law):
         load_case(name, keys(name, law))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,law", [p for p in PAIRS if p not in REFUSED and p[0] not in TWO_RANKS])
 def test_every_law_completes_every_case(name, law, tmp_path):
     summary = dolfrag.run(load_case(name, keys(name, law)), tmp_path, quiet=True, comm=MPI.COMM_SELF)

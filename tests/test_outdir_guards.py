@@ -13,6 +13,8 @@ from dolfrag import guards
 from dolfrag.config import CaseError, load_case
 from dolfrag.runner.driver import run
 
+pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
+
 SMALL = ["--set", "mesh.size=0.01", "--set", "time.end=2e-6", "--set", "output.fields=0",
          "--set", "output.figures=false", "--quiet"]
 

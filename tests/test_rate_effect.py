@@ -150,6 +150,7 @@ def test_rate_effect_gives_the_same_run_on_one_and_two_ranks(tmp_path):
         assert two["energies_J"][key] == pytest.approx(value, rel=1e-8, abs=1e-9 * one["energies_J"]["W_external_J"])
 
 
+@pytest.mark.slow
 def test_a_stopped_run_with_the_rate_effect_resumes_bit_for_bit(tmp_path):
     """The links' strengths (and what follows from them) are in the checkpoint: a run stopped
     at step 30 and resumed ends as the uninterrupted run, history.csv to the last digit."""

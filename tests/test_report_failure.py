@@ -12,6 +12,8 @@ from dolfrag import cli
 from dolfrag.runner import driver
 from dolfrag.runner.reports.wall import WallReport
 
+pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
+
 # the wall section, 14 steps of the built-in case (about a second)
 WALL = ["run", "wall-bending-clamped", "--quiet", "--set", "time.end=2e-5", "--set", "output.fields=1"]
 

@@ -94,6 +94,7 @@ def test_a_run_stopped_by_sigterm_and_resumed_ends_as_the_uninterrupted_run(tmp_
     assert times == whole_times and len(times) == 5
 
 
+@pytest.mark.slow
 def test_a_killed_run_resumes_from_its_last_periodic_checkpoint_without_repeating_a_step(tmp_path):
     whole = dolfrag(["run", *RUN, "--out", tmp_path / "whole"], 1)
     assert whole.returncode == 0, whole.stderr
@@ -118,6 +119,7 @@ def test_a_killed_run_resumes_from_its_last_periodic_checkpoint_without_repeatin
     assert len(set(pieces)) == len(times) == 5 and all((out / p).exists() for p in pieces)
 
 
+@pytest.mark.slow
 def test_resume_on_another_rank_count_is_refused_in_one_line(tmp_path):
     out = tmp_path / "run"
     assert dolfrag(["run", *RUN, "--out", out], 1, stop_at=5).returncode == 143

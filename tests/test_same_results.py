@@ -23,6 +23,8 @@ from mpi4py import MPI
 import dolfrag
 from dolfrag.config import load_case
 
+pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
+
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data" / "same_results.json"
 # The model of the recording: the bulk viscosity and the Hopkinson cases' internal friction

@@ -106,6 +106,7 @@ def test_reduced_slab_writes_the_same_fragments_csv_and_debris_on_1_2_and_3_rank
             assert other["debris"][key] == summary["debris"][key], (n, key)
 
 
+@pytest.mark.slow
 def test_slow_ramp_bends_the_slab_as_its_static_solution_and_the_thin_plate_estimate_is_reported(tmp_path):
     from mpi4py import MPI
 

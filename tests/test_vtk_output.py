@@ -33,6 +33,7 @@ def cell_means(grid, name):
     return centroid[order], mean[order]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("shape", sorted(CASES))
 def test_fields_pvd_has_each_cell_once_on_1_and_2_ranks(shape, tmp_path):
     name, sets, measure = CASES[shape]

@@ -11,6 +11,8 @@ from conftest import mpirun
 from dolfrag import analytic, loads
 from dolfrag.config import load_case
 
+pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
+
 # A 0.2 m strip of the wall with rollers on its cut ends: uniaxial strain through the
 # thickness, as at midspan of the full wall, where the supports are far (5 x fewer cells)
 STRIP = ["geometry.length=0.2", "supports.clamped=[]", "supports.rollers=[\"left\", \"right\"]",

@@ -274,6 +274,7 @@ def test_slab_wall_block_is_json_ready_with_per_axis_results():
     assert block["midspan_deflection"]["at_first_through_crack_m"] == pytest.approx(0.5e-3, abs=1e-18)
 
 
+@pytest.mark.slow
 def test_the_full_scabbing_wall_reports_the_layer_not_the_clamped_corners(tmp_path):
     # wall-scabbing as written (docs/wall.md, 26 s): the spall crack cuts a layer over the whole
     # span; next to the clamped ends wedges 30 mm deep and 7-10 mm wide come off the corners
