@@ -39,6 +39,7 @@ RUN_FOLDER = "run"
 LEAD_SHARE = 0.1
 LEAD_MAX_S = 300
 TIME = re.compile(r"^(\d+):([0-5]\d):([0-5]\d)$")
+PARTITION = re.compile(r"^[\w.-]+(,[\w.-]+)*$")  # a name, or several separated by commas
 
 
 def limit_seconds(text):
@@ -63,6 +64,14 @@ def check_ranks(ranks):
     """CaseError (one line) if ``ranks`` < 1."""
     if ranks < 1:
         raise CaseError(f"--ranks = {ranks}: must be a whole number >= 1 (MPI ranks, one per core)")
+
+
+def check_partition(partition):
+    """CaseError (one line) if ``partition`` (or None: the cluster's default) is not a Slurm
+    partition name or a comma-separated list of them (it goes into an #SBATCH line as it is)."""
+    if partition is not None and not PARTITION.match(partition):
+        raise CaseError(f"--partition = {partition!r}: must be a partition name (letters, digits, '_', '.', '-'), "
+                        "or several separated by commas")
 
 
 def command():
@@ -130,6 +139,7 @@ def job_script(case, overrides, ranks, time, out, overwrite=False, partition=Non
     what is allowed), then return the job script's text. Reads the case; writes nothing."""
     check_ranks(ranks)
     limit_seconds(time)
+    check_partition(partition)
     loaded = load_case(case, overrides)
     guards.check(loaded)
     outdir.check(out, overwrite)

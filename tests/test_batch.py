@@ -1,7 +1,8 @@
 """`dolfrag batch` (dolfrag/batch.py): the job script it writes, its refusals of bad input, and
 the job itself on a one-node Slurm started on this machine (tests/slurm/local-slurm.sh): a
 2-rank run that outlasts its 1-minute limit is stopped by the early SIGTERM, requeued and
-resumed until it ends as the uninterrupted run; a run that fails on bad input is not requeued.
+resumed until it ends as the uninterrupted run; a run that fails on bad input is not requeued,
+nor is a start that made no step.
 
 The scheduler tests fail (not skip) with the daemons' error when Slurm cannot start here.
 """
@@ -19,7 +20,7 @@ from conftest import ROOT, dolfrag_cli
 from dolfrag import batch
 
 START = ROOT / "tests" / "slurm" / "local-slurm.sh"
-SLURM_CONF = "/var/spool/dolfrag-slurm/slurm.conf"  # where local-slurm.sh writes it
+SLURM_CONF = os.path.join(os.environ.get("DOLFRAG_SLURM_DIR", "/var/spool/dolfrag-slurm"), "slurm.conf")  # local-slurm.sh's
 # imex on a cracking bar: 85 steps, 50 broken links (tests/test_resume.py, IMEX)
 CASE = ["tests/cases/rccm-bar.toml", "--set", "time.end=80e-6", "--set", "mesh.size=0.008",
         "--set", "output.every=1", "--set", "output.fields=3"]
@@ -66,6 +67,7 @@ def test_the_fine_bunker_script_in_docs_cluster_md_is_what_batch_prints():
     ("--time", "1:00:00:00", "--time = '1:00:00:00': must be HH:MM:SS"),
     ("--time", "00:00:40", "must be at least 00:01:00"),
     ("--ranks", "0", "--ranks = 0: must be a whole number >= 1"),
+    ("--partition", "big queue", "--partition = 'big queue': must be a partition name"),
     ("--set", "mesh.size=-1", "mesh.size = -1: must be a number > 0"),
 ])
 def test_bad_batch_input_exits_2_in_one_line_and_writes_nothing(tmp_path, option, value, says):
@@ -181,3 +183,25 @@ def test_a_job_whose_run_fails_on_bad_input_ends_without_requeue(tmp_path, slurm
     assert fields["JobState"] == "FAILED" and fields["ExitCode"] == "2:0" and fields["Restarts"] == "0", text
     assert "no such file or built-in case" in text and ": requeued" not in text
     assert "ended with exit status 2" in text
+
+
+@pytest.mark.mpi
+def test_a_start_that_makes_no_step_ends_the_job_instead_of_requeuing_it_forever(tmp_path, slurm):
+    out = tmp_path / "job"
+    # a start that spends its whole limit before the time loop (meshing, say) and is killed
+    # by the signal there: the run's summary stays the earlier stop's
+    meshing = dict(slurm, **{batch.COMMAND_VARIABLE: "bash -c 'sleep 100' meshing"})
+    written = subprocess.run([sys.executable, "-m", "dolfrag.cli", "batch", *CASE, "--ranks", "2", "--time",
+                              "00:01:00", "--out", out], capture_output=True, text=True, env=meshing, cwd=ROOT)
+    assert written.returncode == 0, written.stderr
+    (out / "run" / "checkpoint").mkdir(parents=True)
+    (out / "run" / "summary.json").write_text(json.dumps({"status": "interrupted", "steps_done": 5}, indent=2))
+    submitted = subprocess.run(["sbatch", "--parsable", out / batch.SCRIPT], capture_output=True, text=True, env=slurm)
+    assert submitted.returncode == 0, submitted.stderr
+    job = submitted.stdout.strip()
+    log = out / f"slurm-{job}.log"
+    fields = wait_for(job, slurm, log, timeout=120)
+    text = log.read_text()
+    # srun returns 143 for tasks killed by SIGTERM, as for a clean stop
+    assert fields["JobState"] == "FAILED" and fields["ExitCode"] == "143:0" and fields["Restarts"] == "0", text
+    assert "stopped at step 5, where this start began: not requeued" in text and ": requeued" not in text

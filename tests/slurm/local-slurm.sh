@@ -59,7 +59,7 @@ CONF
 }
 
 up() {
-    scontrol ping 2>/dev/null | grep -q "is UP" && sinfo -h -o %T 2>/dev/null | grep -q -E "idle|alloc|mix"
+    scontrol ping 2>/dev/null | grep -q "is UP" && sinfo -h -o %T 2>/dev/null | grep -qx -E "idle|allocated|mixed|completing"
 }
 
 start_munge() {
@@ -82,6 +82,10 @@ start() {
     pgrep -F "$DIR/slurmctld.pid" >/dev/null 2>&1 || slurmctld -f "$SLURM_CONF"
     pgrep -F "$DIR/slurmd.pid" >/dev/null 2>&1 || slurmd -f "$SLURM_CONF"
     for _ in $(seq 60); do
+        # a node left down or drained by an earlier run (a task that would not die) is taken back
+        if sinfo -h -o %T 2>/dev/null | grep -q -E "down|drain"; then
+            scontrol update nodename="$NODE" state=resume
+        fi
         if up; then
             echo "Slurm is up ($SLURM_CONF)"
             return
