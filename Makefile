@@ -9,24 +9,36 @@ PY := $(VENV)/bin/python
 APT_PACKAGES := python3-dolfinx-real python3-petsc4py-real python3-mpi4py python3-gmsh \
                 python3-scipy python3-venv python3-pip openmpi-bin \
                 libgl1 libegl1 libgl1-mesa-dri libosmesa6 libxrender1 libx11-6
+# `make test` only: a one-node Slurm for tests/test_batch.py (tests/slurm/local-slurm.sh).
+# Not in APT_PACKAGES: `make install` also sets up cluster nodes, whose own Slurm Debian's
+# would clash with.
+TEST_APT_PACKAGES := slurm-wlm munge
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # One BLAS thread per process (see dolfrag/__init__.py); MPI as root needs these.
 export OPENBLAS_NUM_THREADS := 1
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 
-.PHONY: install system-packages demo test check bench peer clean
+.PHONY: install system-packages test-packages demo test check bench peer clean
 
 install: system-packages $(VENV)/.installed
 
-system-packages:
-	@missing=$$(for p in $(APT_PACKAGES); do \
+# $(call apt_install,PACKAGES): install those of PACKAGES that are missing
+define apt_install
+	@missing=$$(for p in $(1); do \
 	    dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q "ok installed" || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 	    echo "Installing Debian packages:" $$missing; \
 	    $(SUDO) apt-get update -qq && \
 	    $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing; \
 	fi
+endef
+
+system-packages:
+	$(call apt_install,$(APT_PACKAGES))
+
+test-packages:
+	$(call apt_install,$(TEST_APT_PACKAGES))
 
 $(VENV)/.installed: pyproject.toml
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
@@ -40,7 +52,7 @@ demo: install
 	$(PY) demos/sound_bar.py
 	$(PY) demos/shpb_be16.py
 
-test: install
+test: install test-packages
 	$(PY) -m pytest -q -rs tests
 
 # The quick tier, after each change: neither the MPI tests nor the slow ones (whole case runs)

@@ -6,6 +6,8 @@
     dolfrag cases [NAME]
     dolfrag --version
     dolfrag loads CASE [--set section.key=value ...] [--out PNG]
+    dolfrag batch CASE --ranks N --time HH:MM:SS --out DIR [--partition P] [--set ...]
+                  [--overwrite] [--submit | --dry-run]
 
 `loads` plots the case's pressure p(t) over [0, time.end] (default PNG:
 results/<case name>/load.png) and prints the PNG path, then the signal's peak (Pa)
@@ -15,6 +17,12 @@ Taylor plateau, burnt-gas sound speed, acoustic frequency) beside published valu
 charge is applied on the meshed boundary (the mesh is built): p(t) at the nearest and
 farthest loaded facets and the face's mean, maps of peak pressure and impulse, and the
 charge's numbers (TNT mass, Z range, the blast at both facets).
+
+`batch` writes DIR/job.sbatch, a Slurm job that runs the case in DIR/run on N ranks and
+requeues itself at each wall-time limit until the run completes (dolfrag/batch.py,
+docs/cluster.md); `--submit` also submits it and prints the job id, `--dry-run` prints the
+script and writes nothing. Its inputs are checked as `run` checks them, before anything is
+queued.
 
 CASE is a case file (TOML) or a built-in case name. Bad input exits with status 2
 and one line naming the key, the value and what is allowed. `run` refuses an --out
@@ -41,7 +49,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfrag import __version__, gas, guards, loads, outdir
+from dolfrag import __version__, batch, gas, guards, loads, outdir
 from dolfrag.config import CaseError, builtin_case_text, builtin_cases, load_case
 from dolfrag.runner.driver import REPORT_ERRORS, run
 from dolfrag.runner.signals import EXIT_CODES
@@ -75,6 +83,20 @@ def _parser():
     plot.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                       help="override a case parameter, e.g. --set load.peak=2e6 (repeatable)")
     plot.add_argument("--out", help="PNG file (default: results/<case name>/load.png)")
+    job = sub.add_parser("batch", help="write a Slurm job script that runs a case through wall-time limits "
+                                       "(checkpoint, requeue, resume)")
+    job.add_argument("case", help="case file (.toml) or built-in case name")
+    job.add_argument("--ranks", type=int, required=True, help="MPI ranks (Slurm tasks), the same at every start")
+    job.add_argument("--time", required=True, metavar="HH:MM:SS", help="wall-time limit of each start")
+    job.add_argument("--out", required=True, metavar="DIR",
+                     help="new or empty folder: job.sbatch, the Slurm log, the run in DIR/run")
+    job.add_argument("--partition", help="Slurm partition (default: the cluster's)")
+    job.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                     help="override a case parameter, as for run (repeatable)")
+    job.add_argument("--overwrite", action="store_true", help="empty a non-empty --out folder first")
+    mode = job.add_mutually_exclusive_group()
+    mode.add_argument("--submit", action="store_true", help="submit the script with sbatch and print the job id")
+    mode.add_argument("--dry-run", action="store_true", help="print the script; write nothing")
     replay = sub.add_parser("replay", help="solve again the vertex stars a stopped run could not solve")
     replay.add_argument("dump", help="a failed_stars_rank<r>.npz the stopped run wrote")
     replay.add_argument("--max-iterations", type=int, help="Newton iterations per star (default: the run's)")
@@ -203,6 +225,8 @@ def main(argv=None):
             if comm.rank == 0:
                 print(star_replay.report(args.dump, args.max_iterations))
             return 0
+        if args.command == "batch":
+            return _batch(args, comm)
         if args.command == "cases":
             if comm.rank == 0:
                 print(_case_text(args.name) if args.name else _case_list())
@@ -221,6 +245,9 @@ def main(argv=None):
         if comm.rank == 0:
             print(f"dolfrag: error: {err}", file=sys.stderr)
         return 2
+    except batch.SubmitError as err:
+        print(f"dolfrag: error: {err}", file=sys.stderr)
+        return 1
     except ConvergenceError as err:  # raised on every rank at once (its check is collective)
         if comm.rank == 0:
             print(f"dolfrag: error: the run stopped: {err}; summary.json has what it reached", file=sys.stderr)
@@ -231,6 +258,21 @@ def main(argv=None):
         # one rank failing alone would leave the others waiting in a collective forever
         traceback.print_exc()
         comm.Abort(1)
+    return 0
+
+
+def _batch(args, comm):
+    """`dolfrag batch`: check, then print (--dry-run) or write the job script, and submit it."""
+    text = batch.job_script(args.case, args.set, args.ranks, args.time, args.out, args.overwrite, args.partition)
+    if args.dry_run:
+        print(text, end="")
+        return 0
+    outdir.prepare(args.out, args.overwrite, comm)
+    path = batch.write(args.out, text)
+    print(path)
+    if args.submit:
+        job = batch.submit(path)
+        print(f"submitted job {job}; its log: {Path(args.out) / f'slurm-{job}.log'}")
     return 0
 
 
