@@ -114,3 +114,14 @@ def test_the_entry_point_and_the_run_package_do_not_clash():
     import dolfrag.runner.loop
     assert callable(dolfrag.run) and dolfrag.run is dolfrag.runner.driver.run
     assert callable(dolfrag.runner.loop.time_loop)
+
+
+def test_the_resume_line_names_the_launcher_the_run_was_started_with(monkeypatch):
+    """mpirun on more than one rank, nothing on one, srun inside a Slurm job (where mpirun
+    would start a second job's worth of ranks outside the allocation)."""
+    from mpi4py import MPI
+    from dolfrag.runner.driver import resume_command
+    monkeypatch.delenv("SLURM_JOB_ID", raising=False)
+    assert resume_command("r", MPI.COMM_SELF) == "dolfrag run --resume r"
+    monkeypatch.setenv("SLURM_JOB_ID", "42")
+    assert resume_command("r", MPI.COMM_SELF) == "srun dolfrag run --resume r"

@@ -1,6 +1,7 @@
 """`run(case, out)`: build the problem, step it through the time loop with its observers,
 and write summary.json once, at the end (completed, failed or interrupted)."""
 import hashlib
+import os
 import traceback
 from pathlib import Path
 from time import perf_counter
@@ -48,7 +49,10 @@ def prepare(problem):
 
 
 def resume_command(out, comm, verb="run --resume"):
-    return ("" if comm.size == 1 else f"mpirun -n {comm.size} ") + f"dolfrag {verb} {out}"
+    """The command that continues the run in ``out``: under a Slurm job, srun (a job script
+    of `dolfrag batch` resumes by itself when requeued), else mpirun on as many ranks."""
+    launcher = "srun " if "SLURM_JOB_ID" in os.environ else "" if comm.size == 1 else f"mpirun -n {comm.size} "
+    return f"{launcher}dolfrag {verb} {out}"
 
 
 def run(case, out, quiet=False, comm=None, resume=False):
