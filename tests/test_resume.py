@@ -17,10 +17,11 @@ import pytest
 
 from conftest import ROOT
 
-# a cracking bar: 48 imex steps, 112 broken links at 40 us (tests/test_same_results.py)
-RUN = ["shpb-be12", "--quiet", "--set", "time.end=40e-6", "--set", "output.every=1", "--set", "output.fields=4",
-       "--set", "output.figures=false", "--set", "output.fragments_at=[10e-6,35e-6]"]
-STOP_AT = 20  # the step after which SIGTERM arrives
+# a cracking bar: 101 imex steps, the first links broken after step 76, 79 broken and 7
+# fragments at 80 us
+RUN = ["shpb-be12", "--quiet", "--set", "time.end=80e-6", "--set", "output.every=1", "--set", "output.fields=4",
+       "--set", "output.figures=false", "--set", "output.fragments_at=[40e-6,75e-6]"]
+STOP_AT = 85  # the step after which SIGTERM arrives: while the bar cracks
 
 
 def dolfrag(args, ranks, stop_at=None):
@@ -79,7 +80,9 @@ def test_a_run_stopped_by_sigterm_and_resumed_ends_as_the_uninterrupted_run(tmp_
     assert resumed.returncode == 0, resumed.stderr
     expected = json.loads((tmp_path / "whole" / "summary.json").read_text())
     got = json.loads((out / "summary.json").read_text())
-    # imex is deterministic: the resumed run repeats the same operations on the same bits
+    # imex is deterministic: the resumed run repeats the same operations on the same bits,
+    # cracking on both sides of the stop
+    assert expected["broken_links"] > 10 and 0 < summary["broken_links"] < expected["broken_links"]
     assert_same_run(got, expected, ranks)
     assert got["status"] == "completed" and got["resumed_from_step"] == STOP_AT
     with open(out / "history.csv") as f:
