@@ -17,7 +17,7 @@
 #
 # $$w = \alpha \frac{q a^4}{D}, \qquad \alpha = 0.00126, \qquad D = \frac{E t^3}{12 (1 - \nu^2)}.$$
 #
-# `dolfrag.analytic.clamped_plate_deflection` computes $\alpha$ by Ritz (0.0012653).
+# `dolfrag.reference.analytic.clamped_plate_deflection` computes $\alpha$ by Ritz (0.0012653).
 #
 # This demo runs a reduced slab, `tests/cases/slab-ramp.toml`: plain concrete 0.5 m × 0.5 m
 # × 0.05 m (span / thickness = 10, as the full slab), E = 35 GPa, ν = 0.2,
@@ -43,7 +43,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 import dolfrag
-from dolfrag import analytic, homogenise
+from dolfrag.reference import analytic, homogenise
 from dolfrag.config import load_case
 
 parser = argparse.ArgumentParser()

@@ -32,7 +32,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfrag
-from dolfrag import analytic, homogenise
+from dolfrag.reference import analytic, homogenise
 from dolfrag.config import load_case
 
 parser = argparse.ArgumentParser()

@@ -12,7 +12,8 @@ is a lower bound.
 import math
 import sys
 
-from dolfrag import analytic, bunker, concrete, viscosity
+from dolfrag import bunker, concrete, viscosity
+from dolfrag.reference import analytic
 from dolfrag.config import CaseError
 
 CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import dolfrag_cli
-from dolfrag import analytic
+from dolfrag.reference import analytic
 from dolfrag.config import load_case
 
 

@@ -9,7 +9,8 @@ from mpi4py import MPI
 
 import dolfrag
 from conftest import rectangle
-from dolfrag import analytic, mesh, rebar, rebar_layout, space as spaces
+from dolfrag import mesh, rebar, rebar_layout, space as spaces
+from dolfrag.reference import analytic
 from dolfrag.config import load_case
 
 E_S, AREA, F_Y = 200e9, 5.236e-4, 500e6

@@ -9,7 +9,8 @@ import pytest
 from conftest import ROOT, mpirun
 from mpi4py import MPI
 
-from dolfrag import analytic, loads
+from dolfrag import loads
+from dolfrag.reference import analytic
 from dolfrag.config import load_case
 from dolfrag.post import shpb
 from dolfrag.post.figures import exploded

@@ -4,7 +4,7 @@ import pytest
 
 import dolfrag
 from conftest import mpirun
-from dolfrag import analytic, homogenise
+from dolfrag.reference import analytic, homogenise
 from dolfrag.config import load_case
 from dolfrag.solver.semismooth import RTOL
 

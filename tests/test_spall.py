@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfrag import analytic, homogenise, loads
+from dolfrag import loads
+from dolfrag.reference import analytic, homogenise
 from dolfrag.config import load_case
 from dolfrag.runner.driver import run
 

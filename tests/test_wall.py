@@ -8,7 +8,8 @@ import pytest
 
 import dolfrag
 from conftest import mpirun
-from dolfrag import analytic, loads
+from dolfrag import loads
+from dolfrag.reference import analytic
 from dolfrag.config import load_case
 
 pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`

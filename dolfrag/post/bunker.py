@@ -2,7 +2,8 @@
 same panel, and which walls and the roof broke into how many free fragments."""
 import numpy as np
 
-from dolfrag import analytic, bunker
+from dolfrag import bunker
+from dolfrag.reference import analytic
 
 LONG_WALL = "wall_north"  # the long wall without the door: a plain panel
 

@@ -9,7 +9,7 @@ listed too, which shows how far the pieces are from the 1D picture of slices.
 """
 import numpy as np
 
-from dolfrag import analytic
+from dolfrag.reference import analytic
 
 # 1 %: an order of magnitude below the share of the tens of fragments the case aims at, and
 # ~30 cells of the case's 2 mm mesh, larger than the chips cracks branch off (measured).

@@ -15,7 +15,7 @@ away faster.
 import numpy as np
 from scipy.signal import find_peaks
 
-from dolfrag import analytic
+from dolfrag.reference import analytic
 from dolfrag.post.fragments import breaks_by_time
 
 MEASURE_TIME = 80e-6  # s: the paper measures the blocks 80 µs after the pulse starts

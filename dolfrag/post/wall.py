@@ -33,7 +33,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from dolfrag import analytic
+from dolfrag.reference import analytic
 
 # A piece touches a face if its bbox comes within TOUCH_SHARE * h of it (h the mesh size, m).
 # In the reference configuration a touching piece lies on the face up to round-off. A piece

@@ -1,6 +1,7 @@
 """A bar loaded on one end (Hopkinson bar, spall): breaks from the free end, and the
 ``shpb`` block at post.shpb.MEASURE_TIME (or the end of a shorter run)."""
-from dolfrag import analytic, homogenise, loads
+from dolfrag import loads
+from dolfrag.reference import analytic, homogenise
 from dolfrag.post import shpb
 from dolfrag.post.fragments import breaks_by_time
 from dolfrag.runner.fragment_times import FragmentTimes

@@ -6,7 +6,7 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import analytic
+from dolfrag.reference import analytic
 from dolfrag.post import wall
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
                                   wave_png)
