@@ -442,8 +442,8 @@ class Supports:
 
 @dataclass(frozen=True)
 class Rebar:
-    """[rebar]: steel bars in tension only (rebar.py), as layers parallel to faces of a
-    rectangle, box or bunker, or behind face groups of a 3D mesh file (rebar_faces.py). No
+    """[rebar]: steel bars in tension only (rebar/cables.py), as layers parallel to faces of a
+    rectangle, box or bunker, or behind face groups of a 3D mesh file (rebar/faces.py). No
     faces: no bars. In 2D a layer is one bar standing for bars
     ``spacing`` apart across the depth (area pi d^2 / 4 / spacing per metre)."""
     faces: tuple[str, ...] = _f("names", ())      # a layer near each of these faces
@@ -690,7 +690,7 @@ def _check_groups(case: Case) -> None:
 
 def _check_rebar(bars: Rebar, geometry: Geometry) -> None:
     """[rebar] keys among themselves and against the geometry's dimension (the layers
-    themselves: rebar_layout.layer_polylines)."""
+    themselves: rebar/layout.layer_polylines)."""
     optional = ("cover", "diameter", "spacing", "f_y", "eps_u")
     if not bars.faces:
         for key in optional:

@@ -1,7 +1,7 @@
 """The discrete problem of a case: mesh, space, bulk operators, links, stars, rebars,
 supports and load, built once by ``Problem.build(case, comm)``.
 
-A Problem holds no time-stepping state but the bars' (rebar.Rebars keeps its plastic strains
+A Problem holds no time-stepping state but the bars' (cables.Rebars keeps its plastic strains
 beside its geometry): the integrators (solver/imex.py, solver/theta/) are built from it
 and carry u, v, t and the interface model's state.
 """
@@ -11,11 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import (bulk, compat, guards, loads, mesh, rebar, rebar_faces, rebar_layout, space as spaces, supports,
-                     viscosity)
+from dolfrag import bulk, compat, guards, loads, mesh, space as spaces, supports, viscosity
 from dolfrag.config import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
+from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
 from dolfrag.solver.theta import accuracy_time_step
@@ -25,7 +25,7 @@ from dolfrag.stretch import end_components
 @dataclass(frozen=True)
 class Problem:
     """case: config.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
-    mass m, stiffness K, dt_crit s); rebars: rebar.Rebars or None; links, jump, stars:
+    mass m, stiffness K, dt_crit s); rebars: cables.Rebars or None; links, jump, stars:
     interface/; held: flat local components held by the supports (a stretch's ends
     included); load: Function of nodal forces per pascal, or for a charge its
     loads.charge_load.ChargeLoad (a p(t) per facet); pressure: p(t) (Pa), for a charge the
@@ -132,7 +132,7 @@ def _rebars(case, domain, space, bulk_ops, comm):
         lines, areas = rebar_faces.polylines(case.rebar, space, domain, comm)
     else:
         lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
-    bars = rebar.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
+    bars = cables.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
                         eps_u=case.rebar.eps_u)
     bars.add_mass(bulk_ops.m.x.array)
     # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only

@@ -1,10 +1,11 @@
-"""Under mpirun: the bar polylines behind a mesh file's face groups (rebar_faces.py), saved by rank 0."""
+"""Under mpirun: the bar polylines behind a mesh file's face groups (dolfrag/rebar/faces.py), saved by rank 0."""
 import sys
 
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag import mesh, rebar_faces, space as spaces
+from dolfrag import mesh, space as spaces
+from dolfrag.rebar import faces as rebar_faces
 from dolfrag.config import load_case
 
 case = load_case(sys.argv[1], sys.argv[3:])

@@ -10,7 +10,8 @@ import ufl
 from mpi4py import MPI
 
 from conftest import ROOT, mpirun
-from dolfrag import bunker, compat, guards, loads, mesh, rebar_faces, space as spaces
+from dolfrag import bunker, compat, guards, loads, mesh, space as spaces
+from dolfrag.rebar import faces as rebar_faces
 from dolfrag.reference import homogenise
 from dolfrag.config import load_case
 from dolfrag.post import bunker as bunker_post

@@ -9,7 +9,7 @@ import pytest
 from conftest import dolfrag_cli
 from dolfrag.config import load_case
 from dolfrag.post import debris
-from dolfrag.rebar_layout import layer_polylines
+from dolfrag.rebar.layout import layer_polylines
 from test_slab import REDUCED
 
 G = debris.G

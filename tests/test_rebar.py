@@ -9,7 +9,8 @@ from mpi4py import MPI
 
 import dolfrag
 from conftest import rectangle
-from dolfrag import mesh, rebar, rebar_layout, space as spaces
+from dolfrag import mesh, space as spaces
+from dolfrag.rebar import cables, layout as rebar_layout
 from dolfrag.reference import analytic
 from dolfrag.config import load_case
 
@@ -18,7 +19,7 @@ E_S, AREA, F_Y = 200e9, 5.236e-4, 500e6
 
 def test_cable_carries_no_compression_and_E_A_eps_in_tension():
     eps = np.array([-1e-3, 0.0, 1e-3, 4e-3])
-    N, eps_p, k = rebar.cable_force(eps, np.zeros(4), E_S, AREA, F_Y)
+    N, eps_p, k = cables.cable_force(eps, np.zeros(4), E_S, AREA, F_Y)
     assert N[:2].tolist() == [0.0, 0.0]
     assert N[2] == pytest.approx(E_S * AREA * 1e-3, rel=1e-12)
     assert N[3] == pytest.approx(AREA * F_Y, rel=1e-12)  # 4e-3 > f_y / E_s = 2.5e-3: yields
@@ -28,8 +29,8 @@ def test_cable_carries_no_compression_and_E_A_eps_in_tension():
 
 def test_yielded_cable_unloads_elastically_and_goes_slack():
     eps_p = np.array([1.5e-3])  # after yielding to eps = 4e-3
-    N_unload = rebar.cable_force(np.array([3e-3]), eps_p, E_S, AREA, F_Y)[0]
-    N_slack = rebar.cable_force(np.array([1e-3]), eps_p, E_S, AREA, F_Y)[0]
+    N_unload = cables.cable_force(np.array([3e-3]), eps_p, E_S, AREA, F_Y)[0]
+    N_slack = cables.cable_force(np.array([1e-3]), eps_p, E_S, AREA, F_Y)[0]
     assert N_unload[0] == pytest.approx(E_S * AREA * 1.5e-3, rel=1e-12)
     assert N_slack[0] == 0.0
 
@@ -41,7 +42,7 @@ def wall_bars(comm):
     space = spaces.create(domain)
     layers = SimpleNamespace(faces=("bottom", "top"), cover=0.03, diameter=0.01, spacing=0.15, direction="x")
     lines, areas = rebar_layout.layer_polylines(layers, geometry, 2)
-    return space, rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.01, comm), lines, areas
+    return space, cables.Rebars(space, lines, areas, E_S, None, 7850.0, 0.01, comm), lines, areas
 
 
 def test_layers_sit_at_the_cover_with_the_area_per_metre_of_depth(wall_bars):
@@ -127,15 +128,15 @@ def test_mean_cable_force_is_the_mean_of_the_law_over_the_strain_path():
     eps_p = np.full(6, 1e-4)
     eps_a = np.array([-1e-3, 1e-3, 3e-3, 2e-3, 1e-3, 1.5e-3])
     eps_b = np.array([1e-3, 4e-3, -2e-3, 2.2e-3, 1e-3 + 1e-17, 1.5e-3])  # up, up, down, in, ~0, 0
-    N, dN = rebar.mean_cable_force(eps_a, eps_b, eps_p, E_S, AREA, F_Y)
+    N, dN = cables.mean_cable_force(eps_a, eps_b, eps_p, E_S, AREA, F_Y)
     s = eps_a + (eps_b - eps_a) * (np.arange(20000)[:, None] + 0.5) / 20000
-    quadrature = rebar.cable_force(s, eps_p, E_S, AREA, F_Y)[0].mean(axis=0)
+    quadrature = cables.cable_force(s, eps_p, E_S, AREA, F_Y)[0].mean(axis=0)
     # the midpoint rule errs by O((d eps / 20000)^2) on the linear pieces, and by a few
     # sample widths' share (~1e-4) of the slope jump where a kink falls inside
     assert N == pytest.approx(quadrature, rel=1e-4)
     step = 1e-9
-    fd = (rebar.mean_cable_force(eps_a, eps_b + step, eps_p, E_S, AREA, F_Y)[0]
-          - rebar.mean_cable_force(eps_a, eps_b - step, eps_p, E_S, AREA, F_Y)[0]) / (2 * step)
+    fd = (cables.mean_cable_force(eps_a, eps_b + step, eps_p, E_S, AREA, F_Y)[0]
+          - cables.mean_cable_force(eps_a, eps_b - step, eps_p, E_S, AREA, F_Y)[0]) / (2 * step)
     assert dN[:4] == pytest.approx(fd[:4], rel=1e-6)  # O(step^2) off the kinks
     k = E_S * AREA
     assert N[4:] == pytest.approx(k * (eps_a[4:] - eps_p[4:]), rel=1e-12)  # the law at the point
@@ -152,7 +153,7 @@ def assembled(blocks, comps, size):
 def tangent_blocks(bars, state):
     """The tangent of the force N(eps) n at a state, chord_tangent(n, n, |c|, N, k, L), as
     blocks over each segment's components."""
-    G = rebar.chord_tangent(state.n_hat, state.n_hat, state.ell, state.N, state.k, bars.L)
+    G = cables.chord_tangent(state.n_hat, state.n_hat, state.ell, state.N, state.k, bars.L)
     w, d = bars.weights, bars.d
     n, m = w.shape
     return np.einsum("jv,jw,jik->jviwk", w, w, G).reshape(n, m * d, m * d)
@@ -187,7 +188,7 @@ def test_step_tangent_is_the_derivative_of_the_step_forces_in_large_rotation(dim
     size = 0.02
     space = spaces.create(mesh.build(geometry, size, comm))
     lines, areas = rebar_layout.layer_polylines(layers, geometry, dim)
-    bars = rebar.Rebars(space, lines, areas, E_S, 5 * F_Y, 7850.0, size, comm)  # yields at 1.25 %
+    bars = cables.Rebars(space, lines, areas, E_S, 5 * F_Y, 7850.0, size, comm)  # yields at 1.25 %
     rng = np.random.default_rng(5)
     u_a = 0.02 * size * rng.standard_normal(space.x.size)
     u_b = u_a + 0.1 * size * rng.standard_normal(space.x.size)
@@ -211,7 +212,7 @@ def hanging_bar(q, f_y, increments, size=0.02):
     comm = MPI.COMM_SELF
     geometry = SimpleNamespace(kind="rectangle", tdim=2, length=1.0, width=size, structured=True)
     space = spaces.create(mesh.build(geometry, size, comm))
-    bars = rebar.Rebars(space, [np.array([[0.0, size / 2], [1.0, size / 2]])], np.array([AREA]), E_S, f_y,
+    bars = cables.Rebars(space, [np.array([[0.0, size / 2], [1.0, size / 2]])], np.array([AREA]), E_S, f_y,
                         7850.0, size, comm)
     node = bars.node
     n = len(node.cell)
@@ -307,7 +308,7 @@ def bars_on_wall(f_y, eps_u=None):
     space = spaces.create(mesh.build(geometry, 0.02, MPI.COMM_SELF))
     layers = SimpleNamespace(faces=("bottom", "top"), cover=0.03, diameter=0.01, spacing=0.15, direction="x")
     lines, areas = rebar_layout.layer_polylines(layers, geometry, 2)
-    return space, rebar.Rebars(space, lines, areas, E_S, f_y, 7850.0, 0.02, MPI.COMM_SELF, eps_u=eps_u)
+    return space, cables.Rebars(space, lines, areas, E_S, f_y, 7850.0, 0.02, MPI.COMM_SELF, eps_u=eps_u)
 
 
 def test_a_segment_strained_to_eps_u_ruptures_for_good_and_releases_its_elastic_energy():
@@ -442,7 +443,7 @@ def box_bars(comm):
     space = spaces.create(mesh.build(BOX, 0.02, comm))
     layers = SimpleNamespace(faces=("front",), cover=0.015, diameter=0.008, spacing=0.05, direction="xy")
     lines, areas = rebar_layout.layer_polylines(layers, BOX, 3)
-    return space, rebar.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm), lines, areas
+    return space, cables.Rebars(space, lines, areas, E_S, None, 7850.0, 0.02, comm), lines, areas
 
 
 def test_drawn_segments_lie_on_the_bars_and_move_with_a_linear_field(box_bars):

@@ -1,10 +1,11 @@
-"""Bar layers behind the face groups of a user's 3D mesh file (rebar_faces.py)."""
+"""Bar layers behind the face groups of a user's 3D mesh file (dolfrag/rebar/faces.py)."""
 import numpy as np
 import pytest
 from mpi4py import MPI
 
 from conftest import mpirun
-from dolfrag import mesh, rebar_faces, space as spaces
+from dolfrag import mesh, space as spaces
+from dolfrag.rebar import faces as rebar_faces
 from dolfrag.config import load_case
 
 # A 0.6 m x 0.4 m x 0.2 m slab with its two large faces named (z = 0 and z = 0.2).

@@ -56,7 +56,7 @@ def broken_mesh_png(space, u, values, path, label, title, scale=None, cell_offse
     cell as a whole (e.g. ``exploded``). cells (n_owned_cells,) bool: draw only those (e.g.
     half a slab, so that the cut shows the cracks inside). view (3,): in 3D, the direction
     from the body towards the camera, z up (default (1, 1, 1), isometric). rebars
-    (rebar.Rebars): the bars drawn as black lines, deformed alike (those in ``cells``), over
+    (rebar/cables.Rebars): the bars drawn as black lines, deformed alike (those in ``cells``), over
     concrete made translucent so that the bars inside it show. ``title`` (``figure_title``:
     the case and the time) heads the figure, ``note`` follows the displacement scale below it.
     Collective; rank 0 draws and returns the figure's ``contents`` (None elsewhere)."""

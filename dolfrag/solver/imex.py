@@ -68,7 +68,7 @@ class Imex:
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
     nodal forces per pascal, times pressure p(t) (Pa), or a load applied per facet
     (loads.charge_load.ChargeLoad; pressure then its mean, for the history); h: time step
-    (s); rebars: rebar.Rebars
+    (s); rebars: rebar/cables.Rebars
     or None. The bars are explicit, like the bulk: their forces need every ghost
     displacement, so with bars each step ends with a forward scatter of u. viscosity:
     viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}). strength:

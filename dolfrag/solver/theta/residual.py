@@ -64,7 +64,7 @@ class Point:
 class ThetaResidual:
     """The step problem on space, bulk, jump (space.py, bulk.py, interface/jumps.py) with an
     interface model, the nodal load (loads/nodal.py), theta, the held components
-    ``constrained`` (flat local indices or a boolean mask), the bars (rebar.Rebars or None)
+    ``constrained`` (flat local indices or a boolean mask), the bars (rebar/cables.Rebars or None)
     and the state u, v (Functions: u_n, v_n, owned by the integrator); rtol: the tolerance
     on the scaled residual; regularisation: on the reaction diagonal of sticking links, whose
     constraints around a vertex are redundant. Collective."""

@@ -1,6 +1,6 @@
 """Rebars: embedded steel bars that carry axial tension only (cables), geometrically exact.
 
-A bar is a polyline tied to the cells it crosses (rebar_layout.py): one *node* per crossed
+A bar is a polyline tied to the cells it crosses (layout.py): one *node* per crossed
 cell, one *segment* between consecutive nodes. A node moves with the P1 displacement of its
 cell, ``u(X) = sum_i lambda_i(X) u_i`` (lambda the barycentric coordinates), so a
 segment spans one or a few facets: when a crack opens or slides there, the jump stretches
@@ -56,7 +56,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from dolfrag import compat
-from dolfrag.rebar_layout import barycentric, nodes
+from dolfrag.rebar.layout import barycentric, nodes
 
 
 def cable_force(eps, eps_p, E_s, area, f_y=np.inf):
@@ -92,7 +92,7 @@ def mean_cable_force(eps_a, eps_b, eps_p, E_s, area, f_y=np.inf):
     path is monotone within the step, the plastic strain eps_p its start's), and its
     derivative in eps_b (N). Along the path N(s) = E_s A (ramp(s - eps_p) - ramp(s - eps_y)),
     eps_y = eps_p + f_y / E_s, so the mean is exact: L (eps_b - eps_a) times it is the work
-    of the bar over the step, elastic energy change plus plastic dissipation (rebar.py's
+    of the bar over the step, elastic energy change plus plastic dissipation (the
     module docstring). Vectorised over bars."""
     k = E_s * area
     N, dN = _ramp_mean(eps_a, eps_b, eps_p)
