@@ -19,7 +19,7 @@ def run(case_name, end, out, overrides):
     from mpi4py import MPI
 
     import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
-    from dolfrag.config import load_case
+    from dolfrag.case import load_case
     from dolfrag.problem import Problem
     from dolfrag.runner.driver import prepare
 

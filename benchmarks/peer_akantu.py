@@ -84,7 +84,7 @@ def run_dolfrag(mesh_path, overrides, out):
 
     from mpi4py import MPI
 
-    from dolfrag.config import Geometry, load_case
+    from dolfrag.case import Geometry, load_case
     from dolfrag.runner.driver import run
     case = load_case(CASE, [*overrides, "output.fields=0", "output.figures=false"])
     case = replace(case, geometry=Geometry(kind="file", file=Path(mesh_path).resolve(), dim=2))
@@ -172,7 +172,7 @@ def run_akantu(mesh_path, mode, p, out):
 
 # ------------------------------------------------------------------ driver
 def _case_values(overrides, size, end):
-    from dolfrag.config import load_case
+    from dolfrag.case import load_case
     case = load_case(CASE, overrides)
     mat, law = case.material, case.interface
     return {"E": mat.E, "nu": mat.nu, "rho": mat.rho, "plane_stress": str(mat.hypothesis == "plane_stress").lower(),
@@ -198,7 +198,7 @@ def main():
         mode, mesh_path, params = args.akantu
         print(json.dumps(run_akantu(Path(mesh_path), mode, json.loads(params), Path(args.out))))
         return
-    from dolfrag.config import load_case
+    from dolfrag.case import load_case
     from dolfrag.post.expanding import MASS_SHARE
     overrides = [f"load.strain_rate={args.strain_rate!r}"] if args.strain_rate else []
     base = load_case(CASE, overrides)

@@ -28,7 +28,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import prepare
 

@@ -45,7 +45,7 @@ import dolfrag  # BLAS thread limit, VTK before DOLFINx
 import dolfrag.timing
 import halo  # beside this script
 from dolfrag import compat, mesh, space as spaces
-from dolfrag.config import builtin_cases, load_case
+from dolfrag.case import builtin_cases, load_case
 from dolfrag.timing import PHASES
 
 SLAB = "slab-3d-scabbing"

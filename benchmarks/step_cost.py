@@ -30,7 +30,7 @@ from mpi4py import MPI
 
 import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
 from dolfrag import loads
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import integrator
 from dolfrag.solver.theta import Theta

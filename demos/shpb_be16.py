@@ -44,7 +44,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 spec = importlib.util.spec_from_file_location("shpb_table", Path(__file__).parent.parent / "validation"
                                               / "shpb_table.py")

@@ -44,7 +44,7 @@ from mpi4py import MPI
 
 import dolfrag
 from dolfrag.reference import analytic, homogenise
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")

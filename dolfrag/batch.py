@@ -27,7 +27,7 @@ import sys
 from pathlib import Path
 
 from dolfrag import guards, outdir
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 
 COMMAND_VARIABLE = "DOLFRAG_BATCH_COMMAND"
 SCRIPT = "job.sbatch"

@@ -13,7 +13,7 @@ import ufl
 from mpi4py import MPI
 
 from dolfrag import compat
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 
 @dataclass
@@ -30,7 +30,7 @@ class Bulk:
 
 
 def material_fields(space, domain, default, groups):
-    """DG0 fields (lam, mu, rho) from the cell tags; groups: name -> config.Material
+    """DG0 fields (lam, mu, rho) from the cell tags; groups: name -> case.Material
     overriding ``default`` for the cells of that physical group."""
     Q = compat.dg0_space(space.mesh)
     lam, mu, rho = (compat.Function(Q) for _ in range(3))

@@ -58,7 +58,7 @@ class Layout:
 
 
 def layout(geometry):
-    """The Layout of a config.Geometry of kind "bunker"."""
+    """The Layout of a case.Geometry of kind "bunker"."""
     s = geometry.scale
     (L_x, L_y, H), t = (s * np.asarray(geometry.inner, dtype=float)), s * geometry.wall
     width, height = s * np.asarray(geometry.door, dtype=float)

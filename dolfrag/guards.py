@@ -14,7 +14,7 @@ import sys
 
 from dolfrag import bunker, concrete, viscosity
 from dolfrag.reference import analytic
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 CELLS_PER_H2 = 2.4         # triangles per h^2 of area (unstructured)
 CELLS_PER_H2_GRID = 2.0    # triangles per h^2 of area (geometry.structured)

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 
 from dolfrag import bunker, compat, guards
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 BOX_FACES = ("left", "right", "bottom", "top", "front", "back")
 
@@ -167,7 +167,7 @@ def _geometric_owners(owner_rule, x, gdim):
 
 
 def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.inf):
-    """Mesh ``geometry`` (a config.Geometry) with element size ``size`` (m) and distribute it.
+    """Mesh ``geometry`` (a case.Geometry) with element size ``size`` (m) and distribute it.
 
     owner_rule: None (DOLFINx's graph partitioner decides which rank owns each cell), or a
     function of the cell centroids (n, gdim) (m) returning each cell's owner rank (n,): a

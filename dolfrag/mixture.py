@@ -1,5 +1,5 @@
 """The unburnt hydrogen mixture of an explosion load: its composition, and the limits within
-which it detonates. Pure Python, no Cantera (config.py checks a case with it; gas.py burns it).
+which it detonates. Pure Python, no Cantera (case/rules.py checks a case with it; gas.py burns it).
 
 A Mixture is x = ``h2_fraction`` (-), the volume (mole) fraction of H2 in H2 and its
 oxidiser, air (O2:N2 = 1:3.76 by volume) or oxygen; an oxygen mixture may be diluted by

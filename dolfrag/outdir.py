@@ -9,7 +9,7 @@ import os
 import shutil
 from pathlib import Path
 
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 
 def _writable_ancestor(path):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dolfrag import bulk, compat, guards, loads, mesh, space as spaces, supports, viscosity
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
 from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
@@ -24,7 +24,7 @@ from dolfrag.stretch import end_components
 
 @dataclass(frozen=True)
 class Problem:
-    """case: config.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
+    """case: case.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
     mass m, stiffness K, dt_crit s); rebars: cables.Rebars or None; links, jump, stars:
     interface/; held: flat local components held by the supports (a stretch's ends
     included); load: Function of nodal forces per pascal, or for a charge its
@@ -82,7 +82,7 @@ class Problem:
 
     @classmethod
     def build(cls, case, comm, owner_rule=None):
-        """Mesh and operators of ``case`` (config.Case) on ``comm``; owner_rule: which rank
+        """Mesh and operators of ``case`` (case.Case) on ``comm``; owner_rule: which rank
         owns each cell, as in mesh.build (default: the graph partitioner's choice). Collective.
         Raises CaseError for a boundary name the mesh lacks."""
         domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule, max_cells=case.run.max_cells)

@@ -1,4 +1,4 @@
-"""The uniform stretch of an expanding bar (config.Load kind "stretch", docs/method.md "Expanding bar").
+"""The uniform stretch of an expanding bar (case.Load kind "stretch", docs/method.md "Expanding bar").
 
 The body starts unstressed, moving with v_x = eps_dot (x - x_mid), v_y = 0, and the x
 velocity of the boundaries ``left`` and ``right`` is held at -/+ eps_dot L / 2 from t = 0
@@ -15,7 +15,7 @@ that E_{n+1/2} - E_{-1/2} = W_{n+1/2} closes to the solver's tolerance.
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.config import STRETCHED, CaseError
+from dolfrag.case import STRETCHED, CaseError
 
 
 def end_components(space, domain):

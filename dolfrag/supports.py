@@ -8,7 +8,7 @@ wall or slab), so the section turns and slides freely about it.
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 
 def constrained_components(space, domain, supports):

@@ -11,7 +11,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 import dolfrag
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.interface.models import LAWS
 from test_law_matrix import REFUSED, keys
 

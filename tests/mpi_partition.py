@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 
 import dolfrag
 from dolfrag import mesh, space as spaces
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 case_name, out, rule = sys.argv[1], sys.argv[2], sys.argv[3]
 overrides = sys.argv[4:]

@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from dolfrag import mesh, space as spaces
 from dolfrag.rebar import faces as rebar_faces
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 case = load_case(sys.argv[1], sys.argv[3:])
 comm = MPI.COMM_WORLD

@@ -7,7 +7,7 @@ from mpi4py import MPI
 
 from conftest import ROOT
 from dolfrag import loads
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.solver.theta import Theta
 

@@ -13,7 +13,7 @@ from conftest import ROOT, mpirun
 from dolfrag import bunker, compat, guards, loads, mesh, space as spaces
 from dolfrag.rebar import faces as rebar_faces
 from dolfrag.reference import homogenise
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post import bunker as bunker_post
 
 # a small room (1.0 m x 0.8 m x 0.8 m inside) at 0.2 m: ~1,000 tetrahedra, one through the walls

@@ -12,7 +12,7 @@ import pytest
 
 from conftest import dolfrag_cli, mpirun
 from dolfrag import loads, mesh, space as spaces
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 from dolfrag.loads import charge
 from dolfrag.loads.charge_load import ChargeLoad, decay_coefficients
 

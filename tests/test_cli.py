@@ -3,7 +3,7 @@ import pytest
 
 from conftest import dolfrag_cli
 import dolfrag
-from dolfrag.config import builtin_case_text, builtin_cases, load_case
+from dolfrag.case import builtin_case_text, builtin_cases, load_case
 
 SMALL = ["--set", "mesh.size=0.01", "--set", "time.end=2e-6", "--set", "output.fields=0",
          "--set", "output.figures=false"]

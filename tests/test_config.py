@@ -1,4 +1,4 @@
-"""Tests for dolfrag.config: TOML case files -> validated dataclasses."""
+"""Tests for dolfrag.case: TOML case files -> validated dataclasses."""
 import copy
 import json
 import math
@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dolfrag.config import CaseError, Interface, builtin_case_text, load_case
+from dolfrag.case import CaseError, Interface, builtin_case_text, load_case
 
 DEL = object()  # marks a key to delete from BASE
 BASE = {
@@ -259,3 +259,16 @@ def test_missing_or_invalid_file(tmp_path):
     bad.write_text("[mesh]\nsize = = 1\n")
     with pytest.raises(CaseError, match=r"^[^\n]*bad\.toml[^\n]*line 2"):
         load_case(bad)
+
+
+def test_a_checkpoint_written_when_the_case_classes_were_in_dolfrag_config_still_loads(tmp_path):
+    """The case's classes moved from the module dolfrag.config to the package dolfrag.case:
+    a run checkpointed before still resumes (runner/checkpoint.py maps the old name)."""
+    import pickle
+    from dolfrag.runner import checkpoint
+    case = load_case("sound-bar")
+    old = pickle.dumps(case, protocol=0).replace(b"dolfrag.case.sections", b"dolfrag.config")
+    assert b"dolfrag.config" in old
+    (tmp_path / checkpoint.FOLDER).mkdir()
+    (tmp_path / checkpoint.FOLDER / checkpoint.CASE).write_bytes(old)
+    assert checkpoint.case_of(tmp_path) == case

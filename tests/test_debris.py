@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from conftest import dolfrag_cli
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post import debris
 from dolfrag.rebar.layout import layer_polylines
 from test_slab import REDUCED

@@ -5,7 +5,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from mpi4py import MPI
 
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import integrator
 

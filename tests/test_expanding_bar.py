@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from conftest import mpirun
 
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import prepare
 

@@ -11,7 +11,7 @@ from mpi4py import MPI
 import dolfrag  # noqa: F401  (loads VTK before DOLFINx: the other order aborts on a colour bar)
 from conftest import box, rectangle
 from dolfrag import mesh, space as spaces
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, colour_range, figure_title, milliseconds,
                                   round_axis, tick_steps)
 from dolfrag.runner import final

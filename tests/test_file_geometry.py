@@ -7,7 +7,7 @@ import pytest
 
 from conftest import dolfrag_cli
 from dolfrag.reference import analytic
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 
 def test_two_material_bar_from_a_geo_file_runs(tmp_path):

@@ -14,7 +14,7 @@ from scipy.optimize import brentq, minimize_scalar
 from conftest import dolfrag_cli, mpirun
 from test_signals import crossing_frequency
 from dolfrag import gas, loads
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.mixture import Mixture
 
 ATM = 101325.0            # Pa

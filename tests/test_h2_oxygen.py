@@ -12,7 +12,7 @@ import pytest
 
 from conftest import dolfrag_cli, mpirun
 from dolfrag import gas, loads
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.mixture import Mixture, composition
 
 ATM = 101325.0      # Pa

@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import dolfrag
 from conftest import mpirun
-from dolfrag.config import CaseError, builtin_cases, load_case
+from dolfrag.case import CaseError, builtin_cases, load_case
 from dolfrag.interface.models import LAWS
 
 # The keys each law needs, and those it does not take, over any case's own: a strength

@@ -4,7 +4,7 @@ tensile strength post-processing reads against the peak of the law's own tractio
 import numpy as np
 import pytest
 
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 from dolfrag.interface import laws, models
 
 E, SIZE = 35e9, 0.005  # Pa, m: C_N = 10 E / h = 7e13 Pa/m

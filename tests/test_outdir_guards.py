@@ -10,7 +10,7 @@ import pytest
 import dolfrag.mesh
 from conftest import ROOT, dolfrag_cli
 from dolfrag import guards
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 from dolfrag.runner.driver import run
 
 pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`

@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 import dolfrag
 from conftest import mpirun
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 # spall-bar shortened to 0.12 m and widened to 0.05 m (20 cells: 21 vertices per grid
 # line), with a 30 us pulse: 14 spall planes 2.5 mm apart break between 49 and 54 us

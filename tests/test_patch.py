@@ -14,7 +14,7 @@ from mpi4py import MPI
 
 from conftest import ROOT
 from dolfrag import compat
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.interface.stars import Stars
 from dolfrag.problem import Problem
 from dolfrag.solver.imex import Imex

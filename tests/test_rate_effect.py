@@ -9,7 +9,7 @@ from mpi4py import MPI
 from conftest import mpirun
 
 from dolfrag import concrete
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 from dolfrag.interface.rate import RateStrength
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import prepare

@@ -12,7 +12,7 @@ from conftest import rectangle
 from dolfrag import mesh, space as spaces
 from dolfrag.rebar import cables, layout as rebar_layout
 from dolfrag.reference import analytic
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 E_S, AREA, F_Y = 200e9, 5.236e-4, 500e6
 

@@ -6,7 +6,7 @@ from mpi4py import MPI
 from conftest import mpirun
 from dolfrag import mesh, space as spaces
 from dolfrag.rebar import faces as rebar_faces
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 # A 0.6 m x 0.4 m x 0.2 m slab with its two large faces named (z = 0 and z = 0.2).
 SLAB_GEO = """SetFactory("OpenCASCADE");

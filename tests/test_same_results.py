@@ -17,7 +17,7 @@ import pytest
 from mpi4py import MPI
 
 import dolfrag
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
 

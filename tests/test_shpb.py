@@ -11,7 +11,7 @@ from mpi4py import MPI
 
 from dolfrag import loads
 from dolfrag.reference import analytic
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post import shpb
 from dolfrag.post.figures import exploded
 from dolfrag.post.fragments import Fragments

@@ -114,7 +114,7 @@ def test_slow_ramp_bends_the_slab_as_its_static_solution_and_the_thin_plate_esti
     from conftest import ROOT
     from dolfrag import loads
     from dolfrag.reference import analytic, homogenise
-    from dolfrag.config import load_case
+    from dolfrag.case import load_case
     case = load_case(ROOT / "tests" / "cases" / "slab-ramp.toml")
     summary = dolfrag.run(case, tmp_path, quiet=True, comm=MPI.COMM_SELF)
     wall = summary["wall"]

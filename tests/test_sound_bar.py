@@ -5,7 +5,7 @@ import pytest
 import dolfrag
 from conftest import mpirun
 from dolfrag.reference import analytic, homogenise
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.solver.semismooth import RTOL
 
 QUIET = ["--set", "output.fields=0", "--set", "output.figures=false"]

@@ -6,7 +6,7 @@ from mpi4py import MPI
 
 from dolfrag import loads
 from dolfrag.reference import analytic, homogenise
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.runner.driver import run
 
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.interface import laws, models
 from dolfrag.interface.contact import contact_friction_residual
 from dolfrag.problem import Problem

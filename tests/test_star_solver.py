@@ -3,7 +3,7 @@ zero (solver/star_kernel.py)."""
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import integrator
 

@@ -9,7 +9,7 @@ from petsc4py import PETSc
 
 from conftest import mpirun
 from dolfrag import loads
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.interface import models
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import run

@@ -8,7 +8,7 @@ from conftest import mpirun
 from mpi4py import MPI
 
 from dolfrag import viscosity
-from dolfrag.config import CaseError, load_case
+from dolfrag.case import CaseError, load_case
 from dolfrag.runner.driver import run
 
 RHO, C, L = 2350.0, 3859.0, 2e-3  # kg/m^3, m/s, m

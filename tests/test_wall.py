@@ -10,7 +10,7 @@ import dolfrag
 from conftest import mpirun
 from dolfrag import loads
 from dolfrag.reference import analytic
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 
 pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make check`
 

@@ -282,7 +282,7 @@ def test_the_full_scabbing_wall_reports_the_layer_not_the_clamped_corners(tmp_pa
     from mpi4py import MPI
 
     import dolfrag
-    from dolfrag.config import load_case
+    from dolfrag.case import load_case
     summary = dolfrag.run(load_case("wall-scabbing", ["output.fields=0", "output.figures=false"]), tmp_path,
                           quiet=True, comm=MPI.COMM_SELF)
     s, estimates = summary["wall"]["scab"], summary["wall"]["estimates"]

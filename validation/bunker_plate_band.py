@@ -14,7 +14,7 @@ markdown table; exits 0 whatever it finds: it measures.
 import argparse
 
 from dolfrag.reference import homogenise
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post import bunker as bunker_post
 
 

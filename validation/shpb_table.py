@@ -33,7 +33,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfrag
-from dolfrag.config import load_case
+from dolfrag.case import load_case
 from dolfrag.post.shpb import BLOCK_MASS_SHARE
 
 C1_SPREAD = 0.15  # of delta_1D, plus h

@@ -470,7 +470,7 @@ class Law(NamedTuple):
     """One interface law of the case's ``interface.law``: how to build its model, and what
     the rest of the code may ask of it.
 
-    build(interface, n_links, C_N, C_T, h, k_step): the model (interface: config.Interface;
+    build(interface, n_links, C_N, C_T, h, k_step): the model (interface: case.Interface;
     C_N, C_T Pa/m from the stiffness rule; h s the time step; k_step Pa/m per link, the
     step's own stiffness, solver/semismooth.step_stiffness). breakable: links can break;
     rigid: links are constraints until they open (no springs, C_N and C_T unused); springs:
@@ -508,12 +508,12 @@ LAWS = {
 
 
 def law(interface):
-    """The Law of ``interface`` (config.Interface)."""
+    """The Law of ``interface`` (case.Interface)."""
     return LAWS[interface.law]
 
 
 def build(interface, E, size, n_links, h, k_step=np.inf):
-    """The model of ``interface`` (config.Interface) on n_links links, its springs by the
+    """The model of ``interface`` (case.Interface) on n_links links, its springs by the
     stiffness rule of E (Pa) and the mesh size (m); h (s) the time step (viscous RCCM);
     k_step (Pa/m, per link) the step's own stiffness, where linear softening leaves its
     rigid constraint."""

@@ -8,12 +8,12 @@ t in s (a float or an array), zero before t = 0 and after the signal's end (docs
 The spatial profile is uniform on the loaded boundary, optionally times ``factor`` in a box
 (a local over-pressure): one load vector times one signal. A charge is the exception: each
 loaded facet gets its own p(t) from its distance to the charge (charge.py: the airblast
-fits; charge_load.py: on the mesh), so the functions here that take one config.Load
+fits; charge_load.py: on the mesh), so the functions here that take one case.Load
 signal refuse it.
 
 An "h2-air" load is the deflagration or detonation shape with its levels computed from the
 gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, dolfrag/gas.py): the functions
-here taking a config.Load accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
+here taking a case.Load accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
 called collectively first, computes them on rank 0 for every rank.
 """
 from dataclasses import asdict, replace
@@ -148,14 +148,14 @@ def acoustic_frequency(sound_speed, length):
 
 
 def h2_mixture(load):
-    """The mixture.Mixture of an h2-air config.Load (an air mixture takes no diluent)."""
+    """The mixture.Mixture of an h2-air case.Load (an air mixture takes no diluent)."""
     if load.oxidizer == "air":
         return Mixture(load.h2_fraction)
     return Mixture(load.h2_fraction, load.oxidizer, load.diluent, load.diluent_fraction)
 
 
 def h2_air_shape(load, comm=None):
-    """The deflagration or detonation config.Load (``load.regime``) of an h2-air load; any
+    """The deflagration or detonation case.Load (``load.regime``) of an h2-air load; any
     other load unchanged. Overpressures (Pa), the mixture's gas.Explosion E, p0 its initial
     pressure, eta = ``heat_loss``, L = ``room_length``:
 
@@ -203,7 +203,7 @@ def _one_signal(load):
 
 
 def signal(load, comm=None):
-    """The p(t) (Pa, vectorised over t in s) of a config.Load; ``comm`` as in h2_air_shape."""
+    """The p(t) (Pa, vectorised over t in s) of a case.Load; ``comm`` as in h2_air_shape."""
     _one_signal(load)
     load = h2_air_shape(load, comm)
     kind = load.signal
@@ -221,13 +221,13 @@ def signal(load, comm=None):
 
 
 def signal_end(load):
-    """Time (s) after which the signal of a config.Load is zero."""
+    """Time (s) after which the signal of a case.Load is zero."""
     _one_signal(load)
     return float(load.t[-1]) if load.signal == "table" else load.duration
 
 
 def shortest_feature(load):
-    """The shortest time feature (s) of a config.Load's signal, what a time step must
+    """The shortest time feature (s) of a case.Load's signal, what a time step must
     resolve: a rise or a decay, a table interval, an oscillation's half period (crest to
     trough, as a triangle's rise), the Friedlander initial fall t_d / (1 + alpha) (the time
     its initial slope takes to reach 0), a local peak's rise w / 2; inf if none is > 0."""
@@ -250,7 +250,7 @@ def shortest_feature(load):
 
 
 def signal_summary(load):
-    """(peak Pa, time of the peak s, impulse Pa s, end s) of a config.Load's signal, sampled
+    """(peak Pa, time of the peak s, impulse Pa s, end s) of a case.Load's signal, sampled
     on [0, end] at 1/200 of its shortest feature (at most 2e6 samples) plus its kinks and
     peaks known in advance (a table's points, the rise, a local peak's centre), so that a
     piecewise-linear p is integrated exactly and a corner peak is not cut."""
@@ -265,7 +265,7 @@ def signal_summary(load):
 
 
 def summary_block(load, applied=None):
-    """summary.json's "load" block of a pressure config.Load: its signal's peak (Pa), time of
+    """summary.json's "load" block of a pressure case.Load: its signal's peak (Pa), time of
     the peak (s), impulse (Pa s) and end (s) (signal_summary), and for h2-air the numbers
     behind it (``h2_air``: h2_air_numbers); for a charge, ``applied.summary()`` (its
     charge_load.ChargeLoad)."""

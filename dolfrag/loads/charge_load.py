@@ -19,7 +19,7 @@ is needed and the forces do not depend on the partition.
 import numpy as np
 from scipy import sparse
 
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 from dolfrag.loads import charge, explosives, friedlander, friedlander_alpha
 from dolfrag.space import facet_measures
 
@@ -31,13 +31,13 @@ FIELDS = ("x", "area", "R", "Z", "angle", "t_a", "P", "t_o", "i", "alpha")
 
 
 def tnt_mass(load):
-    """W (kg of TNT) of a charge config.Load."""
+    """W (kg of TNT) of a charge case.Load."""
     return explosives.tnt_mass(load.mass, load.explosive, load.equivalence)
 
 
 def facet_blast(load, x, normal):
     """{name: (n,) array} of FIELDS but x and area for facets with midpoints x (n, gdim) m
-    and outward unit normals (n, gdim) under the charge config.Load ``load``: R (m), Z
+    and outward unit normals (n, gdim) under the charge case.Load ``load``: R (m), Z
     (m/kg^(1/3)), angle (rad), t_a (s), P (Pa, reflected at the angle), t_o (s), i (Pa s,
     reflected at the angle), alpha (-)."""
     to_charge = np.asarray(load.position) - x
@@ -91,7 +91,7 @@ def force_matrix(space, dofs, normal, area):
 
 
 class ChargeLoad:
-    """The charge config.Load ``load`` on boundary ``load.boundary`` of domain (mesh.py) and
+    """The charge case.Load ``load`` on boundary ``load.boundary`` of domain (mesh.py) and
     space (space.py). Collective; CaseError if a facet's Z is outside the fits.
 
     rows, forces(t): the nodal load of loads/nodal.py (owned components, N).

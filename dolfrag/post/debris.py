@@ -127,7 +127,7 @@ def hazard_distance(ranges, energies, hazard_energy, hazard_area, ring_width):
 
 def block(debris, options, centre, ground_z, held):
     """JSON-ready summary of a Throw ``debris``: counts, the largest range and the hazard
-    distance. options: config.Debris; centre (2,) m; ground_z m; held: fragments not thrown."""
+    distance. options: case.Debris; centre (2,) m; ground_z m; held: fragments not thrown."""
     hazardous = debris.impact_energy >= options.hazard_energy
     return {"thrown": len(debris.ids), "held": int(held), "hazardous": int(hazardous.sum()),
             "largest_range_m": float(debris.range.max(initial=0.0)),

@@ -22,7 +22,7 @@ def block(frags, length, rate, material, interface):
     (interface.sigma_c, G_c given; else ``closed_forms`` is None).
 
     frags: Fragments in the reference configuration; length (m); rate eps_dot (1/s);
-    material, interface: config.Material, config.Interface.
+    material, interface: case.Material, case.Interface.
     """
     counted = frags.mass >= MASS_SHARE * frags.mass.sum()
     count = int(np.count_nonzero(counted))

@@ -53,7 +53,7 @@ class FragmentTable:
 
 def held_cells(space, domain, supports):
     """(n_owned_cells,) bool: the owned cells with a corner on a boundary listed in
-    ``supports`` (config.Supports) as clamped or simple."""
+    ``supports`` (case.Supports) as clamped or simple."""
     names = [name for kind in HOLDING for name in getattr(supports, kind)]
     dofs = np.concatenate([space.boundary_dofs(domain.facet_tags, domain.boundary_tag(name)) for name in names]
                           + [np.empty(0, dtype=np.int64)])

@@ -16,7 +16,7 @@ SAMPLES = 8  # samples per mesh size along a bar: a run per crossed cell, even w
 
 def layer_polylines(rebar, geometry, gdim):
     """Polylines (list of (2, gdim) arrays, m) and steel areas (m^2, per metre of depth in
-    2D) of the bar layers of a config.Rebar on a rectangle or box: one layer per face in
+    2D) of the bar layers of a case.Rebar on a rectangle or box: one layer per face in
     ``rebar.faces`` at ``rebar.cover`` (m, face to bar axis), bars along each axis of
     ``rebar.direction`` that is tangent to the face, ``rebar.spacing`` apart (m). In 3D the
     second direction of a face sits one diameter further in, so that the bars cross, and a

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dolfrag.config import CaseError
+from dolfrag.case import CaseError
 
 FOLDER = "checkpoint"
 CASE = "case.pkl"
@@ -88,6 +88,14 @@ def owner_rule(centroids, comm):
     return lambda c: ranks[tree.query(c)[1]]
 
 
+class _Unpickler(pickle.Unpickler):
+    """Reads checkpoints written before the case's classes moved from dolfrag.config to the
+    package dolfrag.case (sections.py), so that such a run still resumes."""
+
+    def find_class(self, module, name):
+        return super().find_class("dolfrag.case.sections" if module == "dolfrag.config" else module, name)
+
+
 def _path(out, comm):
     return Path(out) / FOLDER / f"rank{comm.rank:05d}-of-{comm.size:05d}.pkl"
 
@@ -103,7 +111,7 @@ def _temporary(obj, path):
 
 
 def write(out, comm, data, case):
-    """Write this rank's ``data`` (picklable) atomically, and the config.Case (rank 0).
+    """Write this rank's ``data`` (picklable) atomically, and the case.Case (rank 0).
     Collective: every rank has written its temporary file before any renames, so a stop in
     between leaves the previous checkpoint of every rank, or the new one of some (load
     tells by the step)."""
@@ -119,13 +127,13 @@ def write(out, comm, data, case):
 
 
 def case_of(out):
-    """The config.Case a checkpoint in ``out`` was written for. Raises CaseError when there
+    """The case.Case a checkpoint in ``out`` was written for. Raises CaseError when there
     is none."""
     path = Path(out) / FOLDER / CASE
     if not path.exists():
         raise CaseError(f"--resume {out}: no checkpoint in it ({path} is missing)")
     with open(path, "rb") as f:
-        return pickle.load(f)
+        return _Unpickler(f).load()
 
 
 def load(out, comm):
@@ -136,7 +144,7 @@ def load(out, comm):
     data = None
     if path.exists():
         with open(path, "rb") as f:
-            data = pickle.load(f)
+            data = _Unpickler(f).load()
     sizes = comm.allgather(None if data is None else data["step"])
     if None in sizes:
         raise CaseError(f"--resume {out}: the checkpoint was written on {', '.join(map(str, map(int, written)))} "

@@ -10,7 +10,7 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag import __version__, guards, loads
-from dolfrag.config import Case, CaseError, load_case
+from dolfrag.case import Case, CaseError, load_case
 from dolfrag.post.output import RunOutput
 from dolfrag.problem import Problem
 from dolfrag.progress import Progress
@@ -56,7 +56,7 @@ def resume_command(out, comm, verb="run --resume"):
 
 
 def run(case, out, quiet=False, comm=None, resume=False):
-    """Run ``case`` (a config.Case, a case file path or a built-in name; ignored with
+    """Run ``case`` (a case.Case, a case file path or a built-in name; ignored with
     ``resume``, which continues the run whose checkpoint is in ``out``); write
     summary.json, history.csv, fields.pvd, links.csv and figures/ into ``out``. Collective.
     Returns the summary dict; its "status" is "interrupted" after SIGINT or SIGTERM."""

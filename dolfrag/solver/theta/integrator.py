@@ -77,7 +77,7 @@ class NewtonReport:
 
 
 def accuracy_time_step(load, end, per_feature=20):
-    """A step (s) resolving the load signal (config.Load): its shortest feature
+    """A step (s) resolving the load signal (case.Load): its shortest feature
     (loads.shortest_feature: a rise, a decay, a table interval, an oscillation's half period)
     over per_feature, at most end / per_feature. A priori only: it knows nothing of the
     structure's periods or of crack events."""
