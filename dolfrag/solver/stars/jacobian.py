@@ -194,8 +194,9 @@ def kind_of(d, star, code):
     fixed point reuses the factors elsewhere. Measured on bunker-h2 (0.2 m, 8 ms): the
     133 stars of the clamped base, started from zero, took 3.1 Newton iterations each."""
     kind = EXACT
+    frozen = star.frozen  # a local: a record field read in a loop costs an NRT incref/decref a pass
     for l in range(star.L):
-        if d == 3 and (code[l] & SLIP) and not star.frozen[l]:
+        if d == 3 and (code[l] & SLIP) and not frozen[l]:
             kind = APPROXIMATE
     return kind
 
@@ -239,5 +240,6 @@ def flip_rows(d, star, l, old, new, U, V):
 def note_factored(star, factored):
     """factored (L, 3) = the (k_N, k_T, mu) of a star's links its factors are formed with
     (what star_replay needs to form stale factors again)."""
+    k_N, k_T, mu = star.k_N, star.k_T, star.mu  # locals (see kind_of)
     for l in range(star.L):
-        factored[l, 0], factored[l, 1], factored[l, 2] = star.k_N[l], star.k_T[l], star.mu[l]
+        factored[l, 0], factored[l, 1], factored[l, 2] = k_N[l], k_T[l], mu[l]

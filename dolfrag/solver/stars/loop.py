@@ -7,7 +7,7 @@ from numba import njit
 from dolfrag.solver.active_set import SLIP
 from dolfrag.solver.stars.gauss_seidel import sweep_space
 from dolfrag.solver.stars.jacobian import factor_piece, kind_of, note_factored
-from dolfrag.solver.stars.newton import newton_space, solve_one
+from dolfrag.solver.stars.newton import newton_space, solve_each
 from dolfrag.solver.stars.options import DEFAULT
 from dolfrag.solver.stars.ordering import unknown_orders
 from dolfrag.solver.stars.records import NONE, Geometry, StepData, empty_cache, empty_outputs, star_at
@@ -23,11 +23,11 @@ def gather_stars(comps, geometry, u, v, f, prescribed, data):
     prescribed increments)."""
     comp_off, link_off, slot_A, slot_B, frame = geometry.comp_off, geometry.link_off, geometry.slot_A, \
         geometry.slot_B, geometry.frame
-    h, g_out, dg_out = data.h, data.g_n, data.dg
+    h, g_out, dg_out, rhs, x_in = data.h, data.g_n, data.dg, data.rhs, data.x_in
     d = frame.shape[1]
     for i in range(len(comps)):
-        data.rhs[i] = h * f[comps[i]]
-        data.x_in[i] = prescribed[comps[i]]
+        rhs[i] = h * f[comps[i]]
+        x_in[i] = prescribed[comps[i]]
     du, dv = np.empty(d), np.empty(d)
     for s in range(len(comp_off) - 1):
         p0 = comp_off[s]
@@ -103,11 +103,7 @@ def _solve_stars(d, geometry, data, cache, out, options, todo, abort):
     # workspaces, once per call
     ev, sw = evaluation(d, q_max, L_max), sweep_space(d, q_max, L_max)
     nw = newton_space(d, q_max, L_max, options.flips)
-    for s in range(n_stars):
-        if abort[0]:
-            return
-        if todo[s]:
-            solve_one(d, s, geometry, data, cache, out, options, ev, sw, nw, abort)
+    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort)
 
 
 @njit(cache=True, error_model="numpy")

@@ -1,7 +1,8 @@
-"""One star's semi-smooth Newton: its start (zero, or the prediction of its stored factors),
-its iterations (full steps, backtracking, Gauss-Seidel, restart: StarOptions), which
-matrix each step solves with (the stored factors, a chord, a Woodbury correction, a
-fresh Jacobian), and what the star keeps of them for the next step."""
+"""Each star's semi-smooth Newton, in one loop over the stars (solve_each): its start (zero,
+or the prediction of its stored factors), its iterations (full steps, backtracking,
+Gauss-Seidel, restart: StarOptions), which matrix each step solves with (the stored
+factors, a chord, a Woodbury correction, a fresh Jacobian), and what the star keeps of
+them for the next step."""
 from collections import namedtuple
 
 import numpy as np
@@ -44,172 +45,206 @@ def newton_space(d, q_max, L_max, flips):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_one(d, s, geometry, data, cache, out, options, ev, sw, nw, abort):
-    """Solve star s (records: Geometry, StepData, Cache, Outputs; StarOptions) and write its
-    outputs and what its stored factors are now (solvers.loop.solve_stars says what each
-    means). ev, sw, nw: the workspaces of evaluate, gauss_seidel and Newton (Evaluation,
-    SweepSpace, NewtonSpace). Returns unfinished where ``abort`` gets set."""
-    p0, l0 = geometry.comp_off[s], geometry.link_off[s]
-    star = star_at(geometry, data, s)
-    q, L = star.q, star.L
-    N = q + L * d
-    if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
-        for i in range(q):
-            fixed, x_in, m, rhs = star.fixed[i], star.x_in[i], star.m[i], star.rhs[i]
-            out.x[p0 + i] = x_in if fixed else rhs / m
-            out.reaction[p0 + i] = (m * x_in - rhs) / star.h if fixed else 0.0
-        out.status[s], out.residual[s] = CONVERGED, 0.0
-        return
-    l1 = l0 + L
-    xs, rs = nw.x[:q], nw.r[:L]
-    store, index = cache.factors[cache.fac_off[s]:cache.fac_off[s] + N * N], \
-        cache.pivots[cache.piv_off[s]:cache.piv_off[s] + 2 * N + 1]
-    order = geometry.elimination[p0 + d * l0:p0 + d * l0 + N]
-    scode = cache.codes[l0:l1]
-    predicted = _start(d, s, star, l0, cache, options.predict, store, index, nw)
-    start = cache.cached[s] if predicted else NONE
-    # Newton's matrix: its factors, its piece and what it is (the stored ones, except
-    # for held-direction factors, which Newton leaves in place: see APPROXIMATE)
-    held = cache.cached[s] == APPROXIMATE
-    kind = cache.cached[s]
-    if held:
-        store, index = nw.held_store[:N * N], nw.held_index[:2 * N + 1]
-        scode = nw.held_code[:L]
-        scode[:] = nw.code_in[:L]
-        kind = NONE
-    code, R, delta, direction = ev.code, ev.R, nw.delta, nw.direction
-    n_built, n_u = -1, 0  # how many flipped links the Woodbury correction was built for (-1: none)
-    smooth = False  # store holds an exact Jacobian formed in this call at a 3D slip (_keep_newton_factors)
-    has_best = False
-    best_scaled, base_scaled, halvings = np.inf, np.inf, 0
-    chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
-    since = 0  # the iteration this start began after: the schedule (cycle, fallback) counts from it
-    for iteration in range(1, options.max_iterations + 2):
-        if abort[0]:  # a star may take seconds (semismooth.ESCALATION)
-            return
-        k = iteration - since
-        scaled_m, scaled_c = evaluate(d, star, xs, rs, data.floor_m, data.floor_c, ev)
-        scaled = max(scaled_m, scaled_c)
-        last = iteration > options.max_iterations  # the best iterate, evaluated once more
-        done, stalled = _accepted(k, last, scaled_m, scaled_c, options)
-        same = True
-        for l in range(L):
-            same = same and code[l] == scode[l]
-        if iteration == 1 and done:
-            out.counters[N_FIRST] += 1
-        out.counters[ITERATIONS] = max(out.counters[ITERATIONS], iteration)
-        if done or last:
-            if done and smooth:  # Newton's last Jacobian, the next step's chord (_keep_newton_factors)
-                _keep_newton_factors(d, s, star, l0, held, nw, cache)
-                cache.cached[s] = STALE
-            else:
-                cache.cached[s] = _kept(done, iteration == 1, predicted, held, kind, same,
-                                        index[0] >= options.woodbury)
-            _finish(d, s, star, p0, l0, done, stalled, scaled, options.rtol, start, ev, nw, cache, out)
-            return
-        if predicted and iteration == options.restart:  # from zero, with the schedule of a start from zero
-            for i in range(q):
-                xs[i] = star.x_in[i] if star.fixed[i] else 0.0
-            rs[:, :] = 0.0
-            since = options.restart
-            continue
-        if k >= options.fallback:
-            if not has_best:
-                nw.best_x[:q], nw.best_r[:L], has_best = xs, rs, True
-            if scaled < best_scaled:
-                nw.best_x[:q], nw.best_r[:L], best_scaled = xs, rs, scaled
-        if iteration == options.max_iterations and has_best:
-            xs[:], rs[:, :] = nw.best_x[:q], nw.best_r[:L]
-            continue
-        if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
-            sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
-            gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, sw)
-            continue
-        if options.cycle < k < options.fallback:  # a shorter step along the last direction
-            if k == options.cycle + 1:
-                nw.base_x[:q], nw.base_r[:L], base_scaled, halvings = xs, rs, np.inf, 0
-                direction[:N] = 0.0
-            if scaled >= base_scaled and halvings < options.shortest:
-                halvings += 1
-                _step_back(d, q, L, 0.5 ** halvings, nw)
-                continue
-            nw.base_x[:q], nw.base_r[:L], base_scaled, halvings = xs, rs, scaled, 0
-        # on the piece of its stored factors (an affine piece, whose Jacobian the piece
-        # and the step's data determine) a star reuses them - a prediction only short
-        # of regularisation is finished by them; stale ones while they contract (chord);
-        # elsewhere a fresh Jacobian replaces them
-        chord = kind == STALE and k < options.cycle and scaled <= options.chord * chord_from
-        n_f = -1
-        if kind == EXACT and not same and index[0] >= options.woodbury:
-            n_f = _flips(star.frozen, scode, code, nw.flipped)
-        if same and chord:
-            chord_from = scaled
-        elif n_f > 0:  # the stored factors and a Woodbury correction for the flipped links
-            if _fresh(n_f, n_built, code, nw):
-                n_u = _woodbury_update(d, star, N, n_f, scode, code, store, index, nw)
-                n_built = n_f
-        elif not (kind == EXACT and same):
-            factor_jacobian(d, star, code, ev, order, store, index, nw.position, options.regularisation)
-            scode[:] = code[:L]
-            if not held:
-                note_factored(star, cache.factored[l0:l1])
-            kind = EXACT if kind_of(d, star, code) == EXACT else NONE  # the exact Jacobian at the iterate
-            smooth = kind == NONE
-            if smooth:
-                for l in range(L):
-                    for i in range(d - 1):
-                        nw.formed_at[l, i] = ev.e[l, i]
-                    nw.formed_at[l, d - 1] = ev.branch[l, B_SCALE]
-            n_built = -1
-        delta[:N] = R[:N]
-        if n_f > 0:
-            woodbury_solve(store, index, nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, delta[:N], nw.t,
-                           nw.work, nw.nonzero)
-        else:
-            solve_star(store, index, delta[:N], nw.work, nw.nonzero)
-        if options.cycle < k < options.fallback:
-            direction[:N] = -delta[:N]
-        for i in range(q):
-            xs[i] -= delta[i]
-        for l in range(L):
-            for i in range(d):
-                rs[l, i] -= delta[q + i * L + l]
+def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
+    """Solve each star s where todo[s] (records: Geometry, StepData, Cache, Outputs;
+    StarOptions) and write its outputs and what its stored factors are now
+    (solvers.loop.solve_stars says what each means). ev, sw, nw: the workspaces of
+    evaluate, gauss_seidel and Newton (Evaluation, SweepSpace, NewtonSpace). Returns
+    unfinished where ``abort`` gets set.
 
-
-@njit(cache=True, error_model="numpy")
-def _start(d, s, star, l0, cache, predict, store, index, nw):
-    """Star s's first iterate into nw.x, nw.r: zero but its prescribed increments, or, from
-    its stored factors (store, index), their affine prediction; and the piece and data
-    it starts from into nw.code_in, nw.factored_in. Returns whether it was predicted."""
-    q, L = star.q, star.L
-    xs, rs = nw.x[:q], nw.r[:L]
-    imposed = False
-    for i in range(q):
-        xs[i] = star.x_in[i] if star.fixed[i] else 0.0
-        imposed = imposed or (star.fixed[i] and star.x_in[i] != 0.0)
-    # reactions start from zero (or from this step's prediction), never from the last
-    # step: around a rigid star they are determined only up to self-equilibrated rings
-    # (see StarOptions.regularisation), which a warm start carried from step to step until
-    # they choked the friction cones (measured: threshold and linear-softening runs then
-    # failed to converge; cold, they complete)
-    for l in range(L):  # with the piece and data the star starts from, element by element
-        for i in range(d):  # (slice assignments cost more per star: measured)
-            rs[l, i] = 0.0
-        nw.code_in[l] = cache.codes[l0 + l]
-        for i in range(3):
-            nw.factored_in[l, i] = cache.factored[l0 + l, i]
-    predicted = cache.cached[s] != NONE and predict and not imposed  # imposed motion: not cached
-    if predicted:
+    The loop over the stars is here, with the record fields it reads taken into locals
+    once: numba increfs every array of every record passed to a compiled function on entry
+    and decrefs it on return (atomic NRT calls, which its reference-count pruning leaves in
+    functions with branches), and a field read in a loop can cost such a pair per pass. A
+    call per star taking the records (solve_one(s, geometry, data, cache, out, ..., nw),
+    with _start and _finish) made ~370 of them per star, 3 us: the kernel was 62 % slower
+    (benchmarks/step_cost.py --law rccm, see the commit). Per star only star_at and the
+    per-iteration kernels are called, whose entry refcounts the pruning removes or few."""
+    comp_off, link_off, elimination = geometry.comp_off, geometry.link_off, geometry.elimination
+    factors, fac_off, pivots, piv_off = cache.factors, cache.fac_off, cache.pivots, cache.piv_off
+    codes, cached, factored, slip_dir = cache.codes, cache.cached, cache.factored, cache.slip_dir
+    status, residual, counters = out.status, out.residual, out.counters
+    x_out, reaction_out, r_out, gbar_out, slip_out = out.x, out.reaction, out.r, out.gbar, out.slip
+    code, R, e, branch, reaction, gbar, slip = ev.code, ev.R, ev.e, ev.branch, ev.reaction, ev.gbar, ev.slip
+    x_nw, r_nw, code_in, factored_in, delta, direction = nw.x, nw.r, nw.code_in, nw.factored_in, nw.delta, \
+        nw.direction
+    work, nonzero, formed_at = nw.work, nw.nonzero, nw.formed_at
+    for s in range(len(comp_off) - 1):
+        if abort[0]:
+            return
+        if not todo[s]:
+            continue
+        p0, l0 = comp_off[s], link_off[s]
+        star = star_at(geometry, data, s)
+        q, L = star.q, star.L
         N = q + L * d
-        delta = nw.delta
-        affine_constant(d, star, cache.codes[l0:l0 + L], cache.slip_dir[l0:l0 + L], delta)
-        solve_star(store, index, delta[:N], nw.work, nw.nonzero)
+        fixed, x_in = star.fixed, star.x_in
+        if L == 0:  # lone copies (a corner of a single cell): no interface, explicit
+            m, rhs = star.m, star.rhs
+            for i in range(q):
+                x_out[p0 + i] = x_in[i] if fixed[i] else rhs[i] / m[i]
+                reaction_out[p0 + i] = (m[i] * x_in[i] - rhs[i]) / star.h if fixed[i] else 0.0
+            status[s], residual[s] = CONVERGED, 0.0
+            continue
+        l1 = l0 + L
+        xs, rs = x_nw[:q], r_nw[:L]
+        store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
+        order = elimination[p0 + d * l0:p0 + d * l0 + N]
+        scode = codes[l0:l1]
+        # the start: zero but the prescribed increments, or, from the stored factors (store,
+        # index), their affine prediction; the piece and data it starts from into code_in,
+        # factored_in
+        imposed = False
         for i in range(q):
-            xs[i] = -delta[i]
-        for l in range(L):
-            for i in range(d):
-                rs[l, i] = -delta[q + i * L + l]
-    return predicted
+            xs[i] = x_in[i] if fixed[i] else 0.0
+            imposed = imposed or (fixed[i] and x_in[i] != 0.0)
+        # reactions start from zero (or from this step's prediction), never from the last
+        # step: around a rigid star they are determined only up to self-equilibrated rings
+        # (see StarOptions.regularisation), which a warm start carried from step to step until
+        # they choked the friction cones (measured: threshold and linear-softening runs then
+        # failed to converge; cold, they complete)
+        for l in range(L):  # with the piece and data the star starts from, element by element
+            for i in range(d):  # (slice assignments cost more per star: measured)
+                rs[l, i] = 0.0
+            code_in[l] = codes[l0 + l]
+            for i in range(3):
+                factored_in[l, i] = factored[l0 + l, i]
+        predicted = cached[s] != NONE and options.predict and not imposed  # imposed motion: not cached
+        if predicted:
+            affine_constant(d, star, codes[l0:l1], slip_dir[l0:l1], delta)
+            solve_star(store, index, delta[:N], work, nonzero)
+            for i in range(q):
+                xs[i] = -delta[i]
+            for l in range(L):
+                for i in range(d):
+                    rs[l, i] = -delta[q + i * L + l]
+        start = cached[s] if predicted else NONE
+        # Newton's matrix: its factors, its piece and what it is (the stored ones, except
+        # for held-direction factors, which Newton leaves in place: see APPROXIMATE)
+        held = cached[s] == APPROXIMATE
+        kind = cached[s]
+        if held:
+            store, index = nw.held_store[:N * N], nw.held_index[:2 * N + 1]
+            scode = nw.held_code[:L]
+            scode[:] = code_in[:L]
+            kind = NONE
+        n_built, n_u = -1, 0  # how many flipped links the Woodbury correction was built for (-1: none)
+        smooth = False  # store holds an exact Jacobian formed in this call at a 3D slip (_keep_newton_factors)
+        has_best = False
+        best_scaled, base_scaled, halvings = np.inf, np.inf, 0
+        chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
+        since = 0  # the iteration this start began after: the schedule (cycle, fallback) counts from it
+        for iteration in range(1, options.max_iterations + 2):
+            if abort[0]:  # a star may take seconds (semismooth.ESCALATION)
+                return
+            k = iteration - since
+            scaled_m, scaled_c = evaluate(d, star, xs, rs, data.floor_m, data.floor_c, ev)
+            scaled = max(scaled_m, scaled_c)
+            last = iteration > options.max_iterations  # the best iterate, evaluated once more
+            done, stalled = _accepted(k, last, scaled_m, scaled_c, options)
+            same = True
+            for l in range(L):
+                same = same and code[l] == scode[l]
+            if iteration == 1 and done:
+                counters[N_FIRST] += 1
+            counters[ITERATIONS] = max(counters[ITERATIONS], iteration)
+            if done or last:
+                if done and smooth:  # Newton's last Jacobian, the next step's chord (_keep_newton_factors)
+                    _keep_newton_factors(d, s, star, l0, held, nw, cache)
+                    cached[s] = STALE
+                else:
+                    cached[s] = _kept(done, iteration == 1, predicted, held, kind, same,
+                                            index[0] >= options.woodbury)
+                # the outcome: status and counters, for an unconverged star what star_replay
+                # needs to start it again (its entry pieces, data and start), its residual, and
+                # the iterate with what evaluate left of it in ev
+                if done:
+                    status[s] = CONVERGED if scaled <= options.rtol else STALLED
+                    if stalled:
+                        counters[N_STALLED] += 1
+                else:  # above give_up even at its best: the run stops (ConvergenceError)
+                    status[s] = UNCONVERGED
+                    counters[N_UNCONVERGED] += 1
+                    out.entry_codes[l0:l1] = code_in[:L]
+                    factored[l0:l1] = factored_in[:L]
+                    out.entry_cached[s] = start
+                residual[s] = scaled
+                for i in range(q):
+                    x_out[p0 + i] = xs[i]
+                    reaction_out[p0 + i] = reaction[i]
+                for l in range(L):
+                    for i in range(d):
+                        r_out[l0 + l, i] = rs[l, i]
+                        gbar_out[l0 + l, i] = gbar[l, i]
+                        slip_out[l0 + l, i] = slip[l, i]
+                break
+            if predicted and iteration == options.restart:  # from zero, with the schedule of a start from zero
+                for i in range(q):
+                    xs[i] = x_in[i] if fixed[i] else 0.0
+                rs[:, :] = 0.0
+                since = options.restart
+                continue
+            if k >= options.fallback:
+                if not has_best:
+                    nw.best_x[:q], nw.best_r[:L], has_best = xs, rs, True
+                if scaled < best_scaled:
+                    nw.best_x[:q], nw.best_r[:L], best_scaled = xs, rs, scaled
+            if iteration == options.max_iterations and has_best:
+                xs[:], rs[:, :] = nw.best_x[:q], nw.best_r[:L]
+                continue
+            if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
+                sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
+                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, sw)
+                continue
+            if options.cycle < k < options.fallback:  # a shorter step along the last direction
+                if k == options.cycle + 1:
+                    nw.base_x[:q], nw.base_r[:L], base_scaled, halvings = xs, rs, np.inf, 0
+                    direction[:N] = 0.0
+                if scaled >= base_scaled and halvings < options.shortest:
+                    halvings += 1
+                    _step_back(d, q, L, 0.5 ** halvings, nw)
+                    continue
+                nw.base_x[:q], nw.base_r[:L], base_scaled, halvings = xs, rs, scaled, 0
+            # on the piece of its stored factors (an affine piece, whose Jacobian the piece
+            # and the step's data determine) a star reuses them - a prediction only short
+            # of regularisation is finished by them; stale ones while they contract (chord);
+            # elsewhere a fresh Jacobian replaces them
+            chord = kind == STALE and k < options.cycle and scaled <= options.chord * chord_from
+            n_f = -1
+            if kind == EXACT and not same and index[0] >= options.woodbury:
+                n_f = _flips(star.frozen, scode, code, nw.flipped)
+            if same and chord:
+                chord_from = scaled
+            elif n_f > 0:  # the stored factors and a Woodbury correction for the flipped links
+                if _fresh(n_f, n_built, code, nw):
+                    n_u = _woodbury_update(d, star, N, n_f, scode, code, store, index, nw)
+                    n_built = n_f
+            elif not (kind == EXACT and same):
+                factor_jacobian(d, star, code, ev, order, store, index, nw.position, options.regularisation)
+                scode[:] = code[:L]
+                if not held:
+                    note_factored(star, factored[l0:l1])
+                kind = EXACT if kind_of(d, star, code) == EXACT else NONE  # the exact Jacobian at the iterate
+                smooth = kind == NONE
+                if smooth:
+                    for l in range(L):
+                        for i in range(d - 1):
+                            formed_at[l, i] = e[l, i]
+                        formed_at[l, d - 1] = branch[l, B_SCALE]
+                n_built = -1
+            delta[:N] = R[:N]
+            if n_f > 0:
+                woodbury_solve(store, index, nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, delta[:N], nw.t,
+                               nw.work, nw.nonzero)
+            else:
+                solve_star(store, index, delta[:N], work, nonzero)
+            if options.cycle < k < options.fallback:
+                direction[:N] = -delta[:N]
+            for i in range(q):
+                xs[i] -= delta[i]
+            for l in range(L):
+                for i in range(d):
+                    rs[l, i] -= delta[q + i * L + l]
 
 
 @njit(cache=True, error_model="numpy")
@@ -247,41 +282,15 @@ def _kept(done, first, predicted, held, kind, same, large):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(d, s, star, p0, l0, done, stalled, scaled, rtol, start, ev, nw, cache, out):
-    """Write star s's outcome: its status and counters, for an unconverged star what
-    star_replay needs to start it again (its entry pieces, data and start), its
-    residual, and the iterate nw.x, nw.r with what evaluate left of it in ev."""
-    q, L = star.q, star.L
-    if done:
-        out.status[s] = CONVERGED if scaled <= rtol else STALLED
-        if stalled:
-            out.counters[N_STALLED] += 1
-    else:  # above give_up even at its best: the run stops (ConvergenceError)
-        out.status[s] = UNCONVERGED
-        out.counters[N_UNCONVERGED] += 1
-        out.entry_codes[l0:l0 + L] = nw.code_in[:L]
-        cache.factored[l0:l0 + L] = nw.factored_in[:L]
-        out.entry_cached[s] = start
-    out.residual[s] = scaled
-    for i in range(q):
-        out.x[p0 + i] = nw.x[i]
-        out.reaction[p0 + i] = ev.reaction[i]
-    for l in range(L):
-        for i in range(d):
-            out.r[l0 + l, i] = nw.r[l, i]
-            out.gbar[l0 + l, i] = ev.gbar[l, i]
-            out.slip[l0 + l, i] = ev.slip[l, i]
-
-
-@njit(cache=True, error_model="numpy")
 def _step_back(d, q, L, alpha, nw):
     """The iterate alpha of the way along the last Newton direction from the base point
     backtracking returns to."""
+    x, r, base_x, base_r, direction = nw.x, nw.r, nw.base_x, nw.base_r, nw.direction
     for i in range(q):
-        nw.x[i] = nw.base_x[i] + alpha * nw.direction[i]
+        x[i] = base_x[i] + alpha * direction[i]
     for l in range(L):
         for i in range(d):
-            nw.r[l, i] = nw.base_r[l, i] + alpha * nw.direction[q + i * L + l]
+            r[l, i] = base_r[l, i] + alpha * direction[q + i * L + l]
 
 
 @njit(cache=True, error_model="numpy")
@@ -301,18 +310,20 @@ def _keep_newton_factors(d, s, star, l0, held, nw, cache):
     if held:
         store = cache.factors[cache.fac_off[s]:cache.fac_off[s] + N * N]
         index = cache.pivots[cache.piv_off[s]:cache.piv_off[s] + 2 * N + 1]
-        n_c = nw.held_index[0]
+        held_store, held_index, held_code = nw.held_store, nw.held_index, nw.held_code
+        n_c = held_index[0]
         for i in range(n_c * N):
-            store[i] = nw.held_store[i]
+            store[i] = held_store[i]
         for i in range(1 + N + n_c):
-            index[i] = nw.held_index[i]
+            index[i] = held_index[i]
         for l in range(L):
-            codes[l0 + l] = nw.held_code[l]
+            codes[l0 + l] = held_code[l]
         note_factored(star, cache.factored[l0:l0 + L])
+    formed_at = nw.formed_at
     for l in range(L):
         if codes[l0 + l] & SLIP:
             for i in range(d):
-                slip_dir[l0 + l, i] = nw.formed_at[l, i]
+                slip_dir[l0 + l, i] = formed_at[l, i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -334,8 +345,9 @@ def _fresh(n_f, n_built, code, nw):
     """Whether the n_f links in nw.flipped, on their pieces ``code``, are other than those
     the Woodbury correction in nw was built for (n_built of them: nw.built)."""
     fresh = n_f != n_built
+    flipped, built = nw.flipped, nw.built
     for i in range(n_f):
-        fresh = fresh or nw.flipped[i] != nw.built[i, 0] or code[nw.flipped[i]] != nw.built[i, 1]
+        fresh = fresh or flipped[i] != built[i, 0] or code[flipped[i]] != built[i, 1]
     return fresh
 
 
@@ -344,10 +356,11 @@ def _woodbury_update(d, star, N, n_f, scode, code, store, index, nw):
     """Build in nw the Woodbury correction of the factors (store, index) of the piece scode
     for the n_f links in nw.flipped going to their pieces ``code``; returns its rank."""
     n_u = 0
+    flipped, built, U, V = nw.flipped, nw.built, nw.U, nw.V
     for i in range(n_f):
-        l = nw.flipped[i]
-        n_u += flip_rows(d, star, l, scode[l], code[l], nw.U[n_u:n_u + 2, :N], nw.V[n_u:n_u + 2, :N])
-        nw.built[i, 0], nw.built[i, 1] = l, code[l]
+        l = flipped[i]
+        n_u += flip_rows(d, star, l, scode[l], code[l], U[n_u:n_u + 2, :N], V[n_u:n_u + 2, :N])
+        built[i, 0], built[i, 1] = l, code[l]
     woodbury_factor(store, index, nw.U[:n_u, :N], nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, nw.work,
                     nw.nonzero)
     return n_u
