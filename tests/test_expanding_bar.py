@@ -65,7 +65,7 @@ def test_expanding_bar_energy_balance_closes_with_the_ends_work(bar_runs):
     assert energies["W_external_J"] - kinetic_0 > 0.01 * energies["W_external_J"]
     assert energies["D_damage_J"] > 0.05 * energies["W_external_J"] and summary["broken_links"] > 100
     # each star solved to 1e-10 of its scales (accepted at 1e-8 where it stalls at a kink,
-    # semismooth.STALL): the discrete balance, the ends' work and E_{-1/2} included, closes
+    # StarOptions.stall): the discrete balance, the ends' work and E_{-1/2} included, closes
     # to that order (measured 1e-14)
     assert summary["balance_error_relative"] < 1e-8
     assert history["newton_unconverged"].max() == 0

@@ -223,7 +223,7 @@ def test_be16_gives_the_same_breaks_and_velocities_on_one_and_two_ranks(be16, tm
         assert a["time_s"] == b["time_s"]
         assert a["distance_from_free_end_m"] == pytest.approx(b["distance_from_free_end_m"], abs=1e-12)
     assert [b["free_at_s"] for b in one["blocks"]] == [b["free_at_s"] for b in two["blocks"]]
-    # each star stops at semismooth.RTOL (1e-10) of its largest term and each step starts
+    # each star stops at StarOptions.rtol (1e-10) of its largest term and each step starts
     # from the last, so velocities drift apart by up to steps x RTOL of the fastest speed
     # (test_sound_bar); a layout bug (a missing ghost term) shows at 1e-3 or more
     steps = summary["steps"]

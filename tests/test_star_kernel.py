@@ -1,8 +1,7 @@
-"""The compiled star kernel (solver/star_kernel.py) against the numpy laws it compiles:
+"""The compiled star kernel (solver/stars/) against the numpy laws it compiles:
 interface/contact.py's Alart-Curnier residuals and each model's springs (interface/models.py,
 interface/laws.py), its Jacobian against finite differences, its LU, and the residual of
 every star it accepts in a run."""
-import inspect
 import itertools
 from pathlib import Path
 
@@ -17,7 +16,12 @@ from dolfrag.problem import Problem
 from dolfrag.runner.driver import integrator
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK
-from dolfrag.solver.star_kernel import FROZEN, REGULARISATION
+from dolfrag.solver.star_kernel import DEFAULT, Cache, Geometry, StepData
+from dolfrag.solver.stars import jacobian, lu, ordering
+from dolfrag.solver.stars.records import Star, star_at
+from dolfrag.solver.stars.residual import FROZEN, evaluate, evaluation
+
+REGULARISATION = DEFAULT.regularisation
 
 
 def _models(n, rng):
@@ -97,32 +101,37 @@ def _star(rng, d, k=5, L=9, fixed_comps=()):
 
 
 def _factor(star, code, branch, e, elimination):
-    """factor_jacobian on one star at the branches _evaluate gave: (store, index)."""
+    """factor_jacobian on one star at the branches evaluate gave: (store, index)."""
     q, L, d = star["q"], star["L"], star["d"]
     N = q + L * d
     store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-    star_kernel.factor_jacobian(q, L, d, *(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m",
-                                                             "fixed", "mu", "k_N", "k_T", "h")),
-                                code, branch, e, elimination, store, index, np.empty(N + 3 * d, np.int64),
-                                np.empty(12 * d * d))
+    jacobian.factor_jacobian(d, _record(star), code, _at(star, branch, e), elimination, store, index,
+                             np.empty(N + 3 * d, np.int64), REGULARISATION)
     return store, index
+
+
+def _record(star):
+    """The kernel's record of one star (records.Star) from its dict (_star)."""
+    return Star(**{k: star[k] for k in Star._fields if k != "x_in"}, x_in=np.zeros(star["q"]))
+
+
+def _at(star, branch, e):
+    """An Evaluation of one star holding the branches (branch, e) of a point."""
+    return evaluation(star["d"], star["q"], star["L"])._replace(branch=branch, e=e)
 
 
 def _elimination(star):
     """The kernel's elimination order of the star's unknowns."""
     out = np.empty(star["q"] + star["L"] * star["d"], np.int64)
-    star_kernel.unknown_order(star["q"], star["L"], star["d"], star["slot_A"], star["slot_B"], out)
+    ordering.unknown_order(star["q"], star["L"], star["d"], star["slot_A"], star["slot_B"], out)
     return out
 
 
 def _evaluate(star, x, r):
-    """The kernel's _evaluate on one star: (R, scaled_m, scaled_c, gbar, code, branch, e)."""
-    q, L, d = star["q"], star["L"], star["d"]
-    out = dict(Bx=np.empty((L, d)), gbar=np.empty((L, d)), slip=np.empty((L, d)), branch=np.empty((L, 5)),
-               e=np.zeros((L, max(d - 1, 1))), force=np.empty(q), R=np.empty(q + L * d), reaction=np.empty(q),
-               code=np.empty(L, np.int8), scratch=np.empty(2 * d))
-    scaled = star_kernel._evaluate(**star, x=x, r=r, floor_m=0.0, floor_c=0.0, **out)
-    return out["R"], *scaled, out["gbar"], out["code"], out["branch"], out["e"]
+    """The kernel's evaluate on one star: (R, scaled_m, scaled_c, gbar, code, branch, e)."""
+    ev = evaluation(star["d"], star["q"], star["L"])
+    scaled = evaluate(star["d"], _record(star), x, r, 0.0, 0.0, ev)
+    return ev.R, *scaled, ev.gbar, ev.code, ev.branch, ev.e
 
 
 def _reference(star, x, r):
@@ -214,9 +223,7 @@ def test_star_jacobian_is_the_derivative_of_the_residual_on_each_piece(d):
         x, r = _unknowns(star, z)
         R, *_, code, branch, e = _evaluate(star, x, r)
         J = np.empty((N, N))
-        star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
-                              star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
-                              code, branch, e, J, np.empty(12 * d * d))
+        jacobian.jacobian(d, _record(star), code, _at(star, branch, e), J, REGULARISATION)
         eps = 1e-6
         FD = np.empty((N, N))
         crossed = False
@@ -248,8 +255,8 @@ def test_lu_solves_like_lapack():
         A[:, 0] *= 1e-3  # pivoting needed
         b = rng.normal(size=N)
         LU, piv, y = A.copy(), np.empty(N, np.int64), b.copy()
-        star_kernel.lu_factor(LU, piv)
-        star_kernel.lu_solve(LU, piv, y)
+        lu.lu_factor(LU, piv)
+        lu.lu_solve(LU, piv, y)
         expected = np.linalg.solve(A, b)
         # both backward stable: agreement to condition x round-off
         assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(A) * np.abs(expected).max())
@@ -283,7 +290,7 @@ def test_lu_factors_are_those_of_one_pivot_at_a_time():
             A[:, rng.integers(0, N)] = 0.0  # a zero pivot
         expected, LU, piv = A.copy(), A.copy(), np.empty(N, np.int64)
         expected_piv = _textbook_lu(expected)
-        star_kernel.lu_factor(LU, piv)
+        lu.lu_factor(LU, piv)
         assert np.array_equal(piv, expected_piv) and np.array_equal(LU, expected), trial
 
 
@@ -299,9 +306,7 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
         x, r = _unknowns(star, rng.normal(size=N) * np.concatenate([~star["fixed"], np.ones(L * d)]))
         R, *_, code, branch, e = _evaluate(star, x, r)
         J = np.empty((N, N))
-        star_kernel._jacobian(star["q"], L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
-                              star["frozen"], star["m"], star["fixed"], star["mu"], star["k_N"], star["k_T"], star["h"],
-                              code, branch, e, J, np.empty(12 * d * d))
+        jacobian.jacobian(d, _record(star), code, _at(star, branch, e), J, REGULARISATION)
         # singular (random links can make a mechanism, cond ~1e16): no solution to compare;
         # such stars passed before only by the round-off of one elimination order
         if np.linalg.matrix_rank(J) < N:
@@ -318,7 +323,7 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
             # unknowns' zero residuals
             for b in (R, np.where(rng.random(N) < 0.5, 0.0, R)):
                 y = b.copy()
-                star_kernel.solve_star(store, index, y, np.empty(N), np.empty(N, np.int64))
+                lu.solve_star(store, index, y, np.empty(N), np.empty(N, np.int64))
                 expected = np.linalg.solve(J, b)
                 # both backward stable on the same matrix: agreement to condition x round-off
                 assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
@@ -389,21 +394,19 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         for l in links:
             others = [c for c in states if c != old[l] & (CONTACT | SPRING)]
             new[l] = (old[l] & ~(CONTACT | SPRING)) | others[rng.integers(len(others))]
-        args = [*(star[k] for k in ("slot_A", "slot_B", "frame", "w", "rho", "frozen", "m", "fixed")),
-                _elimination(star), *(star[k] for k in ("mu", "k_N", "k_T", "h"))]
+        record = _record(star)
         slip_dir = np.hstack([e, np.zeros((L, 1))])  # held directions, scale 0 (piece_branches)
-        work = dict(branch=np.empty((L, 5)), e=np.zeros((L, max(d - 1, 1))), scratch=np.empty(12 * d * d))
+        at = evaluation(d, q, L)
         J_old, J_new = np.empty((N, N)), np.empty((N, N))
         for J, piece in ((J_new, new), (J_old, old)):  # the whole matrices of the two pieces
-            star_kernel.piece_branches(L, d, piece, slip_dir, work["branch"], work["e"])
-            star_kernel._jacobian(q, L, d, *args[:8], *args[9:], piece, work["branch"], work["e"], J, work["scratch"])
+            jacobian.piece_branches(L, d, piece, slip_dir, at.branch, at.e)
+            jacobian.jacobian(d, record, piece, at, J, REGULARISATION)
         store, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-        star_kernel.factor_piece(q, L, d, *args, old, slip_dir, store, index, np.empty(N + 3 * d, np.int64), **work)
+        jacobian.factor_piece(d, record, old, slip_dir, _elimination(star), store, index,
+                              np.empty(N + 3 * d, np.int64), at, REGULARISATION)
         U, V, n_u = np.zeros((2 * len(links), N)), np.zeros((2 * len(links), N)), 0
         for l in links:
-            n_u += star_kernel._flip_rows(q, L, d, star["slot_A"], star["slot_B"], star["frame"], star["w"],
-                                          star["rho"], star["fixed"], star["k_N"], star["h"], l, old[l], new[l],
-                                          U[n_u:n_u + 2], V[n_u:n_u + 2])
+            n_u += jacobian.flip_rows(d, record, l, old[l], new[l], U[n_u:n_u + 2], V[n_u:n_u + 2])
         U, V = U[:n_u].copy(), V[:n_u].copy()
         # the same entries summed in another order: round-off of the largest
         assert np.allclose(J_old + U.T @ V, J_new, rtol=0, atol=1e-14 * np.abs(J_new).max()), trial
@@ -413,10 +416,10 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         compared += 1
         Z, cap, cap_piv = np.empty((n_u, N)), np.empty(n_u * n_u), np.empty(n_u, np.int64)
         buffers = (np.empty(N), np.empty(N, np.int64))
-        star_kernel._woodbury_factor(store, index, U, V, Z, cap, cap_piv, *buffers)
+        lu.woodbury_factor(store, index, U, V, Z, cap, cap_piv, *buffers)
         b = rng.normal(size=N)
         y = b.copy()
-        star_kernel._woodbury_solve(store, index, V, Z, cap, cap_piv, y, np.empty(n_u), *buffers)
+        lu.woodbury_solve(store, index, V, Z, cap, cap_piv, y, np.empty(n_u), *buffers)
         expected = np.linalg.solve(J_new, b)
         # the correction adds the capacitance's condition to the old factors' round-off
         capacitance = np.eye(n_u) + V @ Z.T
@@ -438,7 +441,8 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
 
     def recorded(*args):
         solve(*args)
-        calls.append([a.copy() if isinstance(a, np.ndarray) else a for a in args])
+        calls.append([type(a)(*(f.copy() if isinstance(f, np.ndarray) else f for f in a)) if isinstance(a, tuple)
+                      else a for a in args])
 
     monkeypatch.setattr(star_kernel, "solve_stars", recorded)
     lay = solver.layout
@@ -447,11 +451,11 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
         integ.step()
         if step % 20 != 19:
             continue
-        args = calls[-1]
-        (comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _, rhs, x_in, g_n, dg, mu,
-         shift, cohesion_T, k_N, k_T, h, rtol, _, _, floor_m, floor_c) = args[:26]
-        named = dict(zip(inspect.signature(solve.py_func).parameters, args))
-        x, r, status = named["x_out"], named["r_out"], named["status"]
+        geometry, data, _, out, options = calls[-1][:5]
+        comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _ = geometry
+        rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, floor_m, floor_c = data
+        rtol = options.rtol
+        x, r, status = out.x, out.r, out.status
         for s in range(lay.n_stars):
             p, l = slice(comp_off[s], comp_off[s + 1]), slice(link_off[s], link_off[s + 1])
             if link_off[s + 1] == link_off[s]:
@@ -469,54 +473,56 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
                 checked += 1
             else:  # accepted after FALLBACK iterations: counted apart, within STALL or GIVE_UP
                 assert status[s] == star_kernel.STALLED
-                assert max(scaled_m, scaled_c) <= 1.01 * star_kernel.STALL or (
-                    scaled_c <= 1.01 * star_kernel.STALL and scaled_m <= 1.01 * star_kernel.GIVE_UP)
+                assert max(scaled_m, scaled_c) <= 1.01 * DEFAULT.stall or (
+                    scaled_c <= 1.01 * DEFAULT.stall and scaled_m <= 1.01 * DEFAULT.give_up)
                 stalled += 1
     assert checked > 10 * lay.n_stars and stalled < 0.01 * checked
     assert (integ.model.damage() > 0).sum() > 10  # the damaged phase was checked too
 
 
 def _kernel_args(star):
-    """solve_stars' and keep_pieces' inputs for one random star (_star), with an empty cache."""
+    """solve_stars' and keep_pieces' records for one random star (_star): Geometry, StepData,
+    and an empty cache (records.Cache's arrays, as a list)."""
     q, L, d = star["q"], star["L"], star["d"]
-    N = q + L * d
-    geometry = (np.array([0, q]), np.array([0, L]), star["slot_A"], star["slot_B"], star["frame"], star["w"],
-                star["rho"], star["frozen"], star["m"], star["fixed"], _elimination(star))
-    link = tuple(star[k] for k in ("g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T"))
-    cache = [np.array([0, N * N]), np.array([0, 2 * N + 1]), np.zeros(N * N), np.zeros(2 * N + 1, np.int64),
-             np.zeros(L, np.int8), np.zeros((L, d)), np.zeros(1, np.int8), np.zeros((L, 3))]
-    return geometry, link, cache
+    comp_off, link_off = np.array([0, q]), np.array([0, L])
+    geometry = Geometry(comp_off, link_off, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
+                        star["frozen"], star["m"], star["fixed"], _elimination(star))
+    data = StepData(star["rhs"], np.zeros(q), *(star[k] for k in ("g_n", "dg", "mu", "shift", "cohesion_T", "k_N",
+                                                                    "k_T", "h")), 0.0, 0.0)
+    return geometry, data, list(star_kernel.empty_cache(comp_off, link_off, d))
 
 
-def _solve(star, geometry, link, cache, abort=None):
+def _solve(star, geometry, data, cache, abort=None):
     """One kernel call on the star: (x, r, counters)."""
-    q, L, d = star["q"], star["L"], star["d"]
-    x, r, counters = np.zeros(q), np.zeros((L, d)), np.zeros(4, np.int64)
-    star_kernel.solve_stars(*geometry, star["rhs"], np.zeros(q), *link, star["h"], star_kernel.RTOL, 100, True, 0.0,
-                            0.0, *cache, x, r, np.zeros(q), np.zeros((L, d)), np.zeros((L, d)), np.zeros(1, np.int8),
-                            np.zeros(1), counters, np.zeros(L, np.int8), np.zeros(1, np.int8), abort=abort)
-    return x, r, counters
+    out = star_kernel.empty_outputs(1, star["q"], star["L"], star["d"])
+    star_kernel.solve_stars(geometry, data, Cache(*cache), out, DEFAULT, abort=abort)
+    return out.x, out.r, out.counters
+
+
+def _keep(geometry, data, x, r, cache):
+    """keep_pieces on the one star of geometry, into cache (a list of records.Cache's arrays)."""
+    star_kernel.keep_pieces(np.array([0]), geometry, data, x, r, Cache(*cache), DEFAULT)
 
 
 def test_a_stop_flag_set_returns_before_any_star_is_solved():
     """The flag of a stop request (solver/interrupt.py) set: the kernel returns at once and
     leaves every output as it was (the step is abandoned); cleared, it solves the star."""
     star = _star(np.random.default_rng(2), 3)
-    geometry, link, cache = _kernel_args(star)
-    x, r, counters = _solve(star, geometry, link, cache, abort=np.ones(1, np.int8))
+    geometry, data, cache = _kernel_args(star)
+    x, r, counters = _solve(star, geometry, data, cache, abort=np.ones(1, np.int8))
     assert not counters.any() and not x.any() and not r.any() and not cache[6].any()
-    x, r, counters = _solve(star, geometry, link, cache, abort=np.zeros(1, np.int8))
+    x, r, counters = _solve(star, geometry, data, cache, abort=np.zeros(1, np.int8))
     assert counters[star_kernel.ITERATIONS] > 0 and x.any()
 
 
 def _solved_from_zero(seed, d, tries):
     """``tries`` random stars (_star, in d dimensions) each solved from zero with an empty
-    cache: (star, geometry, link, cache, x, r, counters)."""
+    cache: (star, geometry, data, cache, x, r, counters)."""
     rng = np.random.default_rng(seed)
     for _ in range(tries):
         star = _star(rng, d)
-        geometry, link, cache = _kernel_args(star)
-        yield (star, geometry, link, cache, *_solve(star, geometry, link, cache))
+        geometry, data, cache = _kernel_args(star)
+        yield (star, geometry, data, cache, *_solve(star, geometry, data, cache))
 
 
 def test_a_star_with_clamped_copies_is_solved_by_its_prediction():
@@ -532,15 +538,15 @@ def test_a_star_with_clamped_copies_is_solved_by_its_prediction():
         star["slot_A"][0], star["slot_B"][0] = 0, 1
         star["frozen"] = (star["slot_A"] < 2) & (star["slot_B"] < 2)
         star["g_n"][star["frozen"]] = star["dg"][star["frozen"]] = 0.0
-        geometry, link, cache = _kernel_args(star)
-        x, r, counters = _solve(star, geometry, link, cache)
-        star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
+        geometry, data, cache = _kernel_args(star)
+        x, r, counters = _solve(star, geometry, data, cache)
+        _keep(geometry, data, x, r, cache)
         if ((cache[4] & STICK) > 0)[~star["frozen"]].any() or counters[star_kernel.N_UNCONVERGED] or \
                 counters[star_kernel.N_STALLED]:
             continue
         tried += 1
         assert cache[6][0] == star_kernel.EXACT
-        x2, r2, counters = _solve(star, geometry, link, cache)
+        x2, r2, counters = _solve(star, geometry, data, cache)
         assert counters[star_kernel.N_FIRST] == 1 and counters[star_kernel.ITERATIONS] == 1
         # both residuals below RTOL (1e-10) of the star's scale: 1e-8 of the largest increment
         # leaves a factor 100 for the conditioning of these random stars
@@ -559,18 +565,18 @@ def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
     the solve, at that solution too. (2D random stars whose piece the change keeps, without
     sticking links, whose REGULARISATION leaves a prediction 1e-6 short.)"""
     tried = 0
-    for star, geometry, link, cache, x, r, counters in _solved_from_zero(7, 2, 300):
-        star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
+    for star, geometry, data, cache, x, r, counters in _solved_from_zero(7, 2, 300):
+        _keep(geometry, data, x, r, cache)
         if (cache[4] & STICK).any() or cache[6][0] != star_kernel.EXACT or counters[star_kernel.N_STALLED]:
             continue
         outcomes = []
         for factor in (1 - 1e-4, 0.25):
             changed = dict(star, k_N=star["k_N"] * factor, k_T=star["k_T"] * factor)
-            _, new_link, fresh_cache = _kernel_args(changed)
-            x_fresh, _, fresh = _solve(changed, geometry, new_link, fresh_cache)
+            _, new_data, fresh_cache = _kernel_args(changed)
+            x_fresh, _, fresh = _solve(changed, geometry, new_data, fresh_cache)
             stale = [c.copy() for c in cache]
             stale[6][0] = star_kernel.STALE
-            x_stale, _, counters = _solve(changed, geometry, new_link, stale)
+            x_stale, _, counters = _solve(changed, geometry, new_data, stale)
             # a random star that Newton cannot solve (stalled or unconverged: a run would stop
             # on it) says nothing of the chord; measured with this machine's LAPACK, one of the
             # 300 (seed 7, the 20th) does not converge from zero with its secants x 0.9999
@@ -611,8 +617,8 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
     stars without sticking links, whose REGULARISATION leaves a prediction 1e-6 short; those
     the first solve converged to RTOL, not accepted stalled: the directions are then as exact.)"""
     tried = first = kept = 0
-    for star, geometry, link, cache, x, r, counters in _solved_from_zero(11, 3, 200):
-        star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
+    for star, geometry, data, cache, x, r, counters in _solved_from_zero(11, 3, 200):
+        _keep(geometry, data, x, r, cache)
         slipping = (cache[4] & SLIP) > 0
         if (cache[6][0] != star_kernel.APPROXIMATE or not slipping.any() or (cache[4] & STICK).any()
                 or counters[star_kernel.N_UNCONVERGED] or counters[star_kernel.N_STALLED]):
@@ -620,7 +626,7 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
         tried += 1
         assert (cache[5][slipping, 2] == 0.0).all()  # held directions: the projection left out
         held = [c.copy() for c in cache]
-        x2, r2, counters = _solve(star, geometry, link, held)
+        x2, r2, counters = _solve(star, geometry, data, held)
         # a star the first solve finished after Gauss-Seidel (30 iterations and more) holds
         # directions exact to RTOL only: its prediction may land 1e-8 off, one Newton step short
         first += int(counters[star_kernel.N_FIRST])
@@ -630,7 +636,7 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
         for angle in (np.pi / 2, 0.035):
             turned = [c.copy() for c in cache]
             turned[5] = _turned(cache[5], slipping, angle)
-            x3, _, counters = _solve(star, geometry, link, turned)
+            x3, _, counters = _solve(star, geometry, data, turned)
             assert counters[star_kernel.N_FIRST] == 0 and not counters[star_kernel.N_UNCONVERGED]
             if counters[star_kernel.N_STALLED] or not ((turned[4] & SLIP) > 0).any():
                 continue  # ended stalled, or on a piece without slip (its factors then formed again)
@@ -638,13 +644,13 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
             q, L, N = star["q"], star["L"], star["q"] + 3 * star["L"]
             k_N, k_T, mu = turned[7].T.copy()
             again, index = np.empty(N * N), np.empty(2 * N + 1, np.int64)
-            star_kernel.factor_piece(q, L, 3, *geometry[2:], mu, k_N, k_T, star["h"], turned[4], turned[5], again,
-                                     index, np.empty(N + 9, np.int64), np.empty((L, 5)), np.empty((L, 2)),
-                                     np.empty(108))
+            jacobian.factor_piece(3, star_at(geometry, data._replace(mu=mu, k_N=k_N, k_T=k_T), 0), turned[4],
+                                  turned[5], geometry.elimination, again, index, np.empty(N + 9, np.int64),
+                                  evaluation(3, q, L), REGULARISATION)
             n_c = index[0]
             assert np.array_equal(again[:n_c * N], turned[2][:n_c * N])
             assert np.array_equal(index[:1 + N + n_c], turned[3][:1 + N + n_c])
-            x4, _, counters = _solve(star, geometry, link, turned)
+            x4, _, counters = _solve(star, geometry, data, turned)
             # both below RTOL (1e-10) of the star's scale: 1e-7 of the largest increment leaves
             # a factor 1000 for the conditioning of these random stars, as above
             assert not counters[star_kernel.N_UNCONVERGED]
@@ -661,19 +667,19 @@ def test_a_restart_from_zero_takes_the_schedule_of_a_start_from_zero():
     counted from the restart): measured on a random 3D star that needs the Gauss-Seidel
     fallback, whose restart otherwise left it 20 iterations short of it and unconverged."""
     checked = 0
-    for star, geometry, link, cache, x, r, counters in _solved_from_zero(11, 3, 300):
+    for star, geometry, data, cache, x, r, counters in _solved_from_zero(11, 3, 300):
         zero = counters[star_kernel.ITERATIONS]
         # solved from zero, in more than RESTART iterations and within the 100 less RESTART a restart leaves
-        if counters[star_kernel.N_UNCONVERGED] or not star_kernel.RESTART < zero <= 100 - star_kernel.RESTART:
+        if counters[star_kernel.N_UNCONVERGED] or not DEFAULT.restart < zero <= 100 - DEFAULT.restart:
             continue
-        star_kernel.keep_pieces(np.array([0]), *geometry, star["rhs"], x, r, *link, star["h"], *cache)
+        _keep(geometry, data, x, r, cache)
         if cache[6][0] == star_kernel.NONE:
             continue
         turned = [c.copy() for c in cache]
         turned[5] = _turned(cache[5], slice(None), np.pi / 2)  # a wrong held slip: a poor prediction
-        _, _, again = _solve(star, geometry, link, turned)
-        if again[star_kernel.ITERATIONS] > star_kernel.RESTART:  # it restarted
-            assert again[star_kernel.ITERATIONS] == star_kernel.RESTART + zero and not again[star_kernel.N_UNCONVERGED]
+        _, _, again = _solve(star, geometry, data, turned)
+        if again[star_kernel.ITERATIONS] > DEFAULT.restart:  # it restarted
+            assert again[star_kernel.ITERATIONS] == DEFAULT.restart + zero and not again[star_kernel.N_UNCONVERGED]
             checked += 1
     assert checked >= 3
 
@@ -758,7 +764,7 @@ def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
     SECOND_REGULARISATION) solves them to RTOL or accepts them within STALL."""
     from dolfrag.solver import semismooth, star_replay
     status, residual, _ = star_replay.replay(dump)
-    assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > star_kernel.GIVE_UP)
+    assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
     status, residual, _ = star_replay.replay(dump, regularisation=semismooth.SECOND_REGULARISATION,
                                              max_iterations=semismooth.ESCALATION * int(np.load(dump)["max_iterations"]))
-    assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= star_kernel.STALL)
+    assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.stall)

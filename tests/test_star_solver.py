@@ -1,5 +1,5 @@
 """The step predicted on each star's last piece (solver/active_set.py) against Newton from
-zero (solver/star_kernel.py)."""
+zero (solver/stars/)."""
 import numpy as np
 from mpi4py import MPI
 
@@ -48,7 +48,7 @@ def test_the_predicted_step_is_newtons_step_from_zero():
 def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
     """A checkpoint written before slip_dir held the projection scale (one column fewer)
     restores as held directions with scale 0, the kernel's meaning of that state, instead of
-    an array the kernel would read past (star_kernel.piece_branches)."""
+    an array the kernel would read past (stars/jacobian.piece_branches)."""
     from dolfrag.runner.checkpoint import restore_object
     lay = _integrator(True).interface.layout
     n, d = lay.slip_dir.shape

@@ -111,7 +111,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
                 _dump_failed_stars(integ, out, comm)
                 raise
         summary["timings_s"] = integ.timer.summary(comm)
-        # star solves accepted at their best iterate within semismooth.GIVE_UP (imex)
+        # star solves accepted at their best iterate within StarOptions.give_up (imex)
         summary["stalled_star_solves"] = comm.allreduce(integ.interface.stalled)
         summary["status"] = "completed" if last == problem.n_steps else "interrupted"
     except BaseException as err:

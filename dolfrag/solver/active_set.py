@@ -1,6 +1,6 @@
 """The last active set of each vertex star, and the affine step it predicts (imex).
 
-The star problem of solver/star_kernel.py is piecewise linear in its unknowns z = (x, r)
+The star problem of solver/semismooth.py is piecewise linear in its unknowns z = (x, r)
 (velocity increments and link reactions): with the damage lagged, on one *piece* - which
 links are in contact, which stick or slip (and which way, in 2D), which are pressed, which
 normal springs pull - its residual is affine,
@@ -21,8 +21,8 @@ increment h B v_-, D the springs' tangent on the piece, w the link weight):
 with e the slip direction (slip_dir, per link). In 2D e = +-1 is part of the piece, and the
 prediction is exact on it. A 3D slip is smooth, not affine: its direction turns with the
 iterate, and the prediction holds e at the last step's direction (the tangent rows
-r_T - radius(r_N) e, with their Jacobian: P = 0 in star_kernel._jacobian), exact only if
-the direction stays; it is then a start for Newton, not a solve (star_kernel's APPROXIMATE).
+r_T - radius(r_N) e, with their Jacobian: P = 0 in stars/jacobian.py), exact only if
+the direction stays; it is then a start for Newton, not a solve (stars/records.APPROXIMATE).
 Compiled (numba), one star at a time, called from the star kernel; no MPI: each rank
 predicts its own stars.
 """
@@ -53,16 +53,20 @@ def spring_normal_tangent(code, k_N):
 
 
 @njit(cache=True, error_model="numpy")
-def affine_constant(q, L, d, slot_A, slot_B, frame, w, rho, m, fixed, rhs, g_n, dg, mu, shift, cohesion_T, k_N,
-                    k_T, h, code, slip_dir, c):
-    """c (q + L d) of the star's pieces ``code`` (L,) into c: momentum rows, then the
-    normal rows of every link, then each tangential component of every link. slot_A,
-    slot_B (L,) the copies each link joins; frame (L, d, d) link frames (normal first);
-    w (L,) weights (m or m^2); rho (L,) augmentation (Pa/m); m, fixed (q,) lumped mass
-    (kg) and prescribed components; rhs (q,) h f (N s); g_n, dg (L, d) m; mu (-), shift,
-    cohesion_T (Pa), k_N, k_T (Pa/m) (L,) the friction, the constraint's cohesion and the
-    springs' secants; h (s); slip_dir (L, d) the slip direction of slipping links (its first
-    d - 1 columns)."""
+def affine_constant(d, star, code, slip_dir, c):
+    """c (q + L d) of the pieces ``code`` (L,) of ``star`` into c: momentum rows, then the
+    normal rows of every link, then each tangential component of every link. star
+    (solver/stars/records.Star): slot_A, slot_B (L,) the copies each link joins; frame
+    (L, d, d) link frames (normal first); w (L,) weights (m or m^2); rho (L,) augmentation
+    (Pa/m); fixed (q,) prescribed components; rhs (q,) h f (N s); g_n, dg (L, d) m; mu (-),
+    shift, cohesion_T (Pa), k_N, k_T (Pa/m) (L,) the friction, the constraint's cohesion and
+    the springs' secants; h (s). slip_dir (L, d) the slip direction of slipping links (its
+    first d - 1 columns)."""
+    q, L, h = star.q, star.L, star.h
+    slot_A, slot_B, frame, w, rho, fixed, rhs = star.slot_A, star.slot_B, star.frame, star.w, star.rho, star.fixed, \
+        star.rhs
+    g_n, dg, mu, shift, cohesion_T, k_N, k_T = star.g_n, star.dg, star.mu, star.shift, star.cohesion_T, star.k_N, \
+        star.k_T
     for i in range(q):
         c[i] = -rhs[i]
     for l in range(L):

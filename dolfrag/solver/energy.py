@@ -53,7 +53,7 @@ def reaction_work(r_N, r_T, dg, shift, cohesion_T):
 
     The stored part is read from the motion, not from the reactions, because the reactions
     of a star of rigid links are not unique: a self-stress around the vertex does no work on
-    the star but moves work from link to link (solver/star_kernel.REGULARISATION), and a
+    the star but moves work from link to link (StarOptions.regularisation, solver/stars/options.py), and a
     step's work pairs its reactions with the jumps of two steps, so a link that slipped in
     the last step and sticks in this one books any reaction inside its cone. Measured on
     sound-bar with linear softening and friction (step 95, the star of vertex (0.1079,

@@ -1,9 +1,9 @@
-"""Newton's tuning constants of the integrators, in one frozen object (each with the
-measurement that set it). The star Newton of imex takes its own from solver/semismooth.py,
-whose CYCLE, REGULARISATION and STALL the theta Newton shares."""
+"""Newton's tuning constants of the theta integrator, in one frozen object (each with the
+measurement that set it). The star Newton of imex has its own (solver/stars/options.py:
+StarOptions), whose cycle, regularisation and stall the theta Newton shares."""
 from dataclasses import dataclass
 
-from dolfrag.solver import semismooth
+from dolfrag.solver.stars.options import DEFAULT as STAR
 
 
 @dataclass(frozen=True)
@@ -50,6 +50,6 @@ class NewtonOptions:
     # shared with the star Newton: damped steps after `cycle` iterations (active-set cycles),
     # the regularisation of sticking links' redundant rows, and the scaled residual at which a
     # stalled Newton is accepted
-    cycle: int = semismooth.CYCLE
-    regularisation: float = semismooth.REGULARISATION
-    stall: float = semismooth.STALL
+    cycle: int = STAR.cycle
+    regularisation: float = STAR.regularisation
+    stall: float = STAR.stall

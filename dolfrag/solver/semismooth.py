@@ -25,14 +25,15 @@ Lagged, every model's springs are secants fixed for the step (model.secants).
 A step starts from the affine prediction of each star's last piece (solver/active_set.py):
 most stars are solved by it, checked by one residual evaluation, and only the stars whose
 piece changed pay for a Jacobian: where only the damage changed, the stored factors go on
-as a chord while it contracts (star_kernel.CHORD). The others start from zero.
+as a chord while it contracts (StarOptions.chord). The others start from zero.
 
-Each star stops on its own. A star its prediction started and Newton has not solved after
-RESTART iterations starts again from zero. A star that Newton has not solved after FALLBACK iterations
-(active-set wandering, measured on rigid laws with friction) is handed to projected
-Gauss-Seidel sweeps over its links, still exact and local; a star still above STALL after
-max_iterations is given the best iterate it reached, accepted within GIVE_UP (and counted),
-else counted as unconverged. A step with an unconverged star solves again with ESCALATION
+Each star stops on its own (the tuning: solver/stars/options.StarOptions). A star its
+prediction started and Newton has not solved after ``restart`` iterations starts again from
+zero. A star that Newton has not solved after ``fallback`` iterations (active-set wandering,
+measured on rigid laws with friction) is handed to projected Gauss-Seidel sweeps over its
+links, still exact and local; a star still above ``stall`` after max_iterations is given the
+best iterate it reached, accepted within ``give_up`` (and counted), else counted as
+unconverged. A step with an unconverged star solves again with ESCALATION
 times the iterations; a star still unconverged then stops the run with ConvergenceError.
 
 The solves run in one compiled loop over the rank's stars (solver/star_kernel.py); this
@@ -45,21 +46,20 @@ from dolfrag.interface.stars import FlatStars
 from dolfrag.solver import star_kernel, star_replay
 from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.interrupt import Responsive, StepInterrupted
-from dolfrag.solver.star_kernel import ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, RTOL
-# the kernel's tuning constants, under the names the rest of the package reads them by
-from dolfrag.solver.star_kernel import CYCLE, GIVE_UP, REGULARISATION, STALL  # noqa: F401
+from dolfrag.solver.star_kernel import (DEFAULT, ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, Cache, Geometry,
+                                         Outputs, StepData, empty_cache)
 from dolfrag.timing import PhaseTimer
 
 # Relative size below which a star's own scales give way to the step's largest (see solve).
 FLOOR = 1e-6
 # A step with a star unsolved after max_iterations solves it again (from the cache the first
 # pass left) with ESCALATION times the iterations and SECOND_REGULARISATION on the reaction
-# diagonal of its sticking links (star_kernel.REGULARISATION elsewhere), before the run
+# diagonal of its sticking links (StarOptions.regularisation elsewhere), before the run
 # stops. What it solves: rings of rigid links around an interior vertex, pressed and
 # sticking, whose reactions are redundant around the ring (linear softening, decoupled
 # RCCM). At 1e-6 their Newton stalls at 1-7e-6 and stays there through 5,000 iterations;
 # at 1e-3 the same stars (dolfrag replay of the dumps: wall-bending-clamped at 38.9 ms,
-# 6 links; bunker-h2 at 6.95 and 7.43 ms, 15 links) converge or are accepted within STALL
+# 6 links; bunker-h2 at 6.95 and 7.43 ms, 15 links) converge or are accepted within stall
 # after 45-90 iterations (1e-9: unconverged). As in theta's sub-steps
 # (NewtonOptions.cycle_regularisation), the residual stays exact: a larger regularisation
 # only slows the last digits down, which is why the first pass keeps 1e-6.
@@ -88,7 +88,6 @@ class StarLayout(FlatStars):
     def __init__(self, stars, links, m, h):
         super().__init__(stars, links)
         d = stars.gdim
-        q, L = np.diff(self.comp_off), np.diff(self.link_off)
         self.frame = np.ascontiguousarray(links.frames()[self.links])  # normal, then tangents
         self.weight = np.ascontiguousarray(links.weight[self.links], dtype=float)
         self.rho = np.ascontiguousarray(step_stiffness(links, m, h, d)[self.links])
@@ -98,20 +97,15 @@ class StarLayout(FlatStars):
         held[self.comps[::d] // d] = self.fixed.reshape(-1, d).all(axis=1)
         self.frozen = np.ascontiguousarray(held[links.dof_A[self.links]] & held[links.dof_B[self.links]])
         self.elimination = star_kernel.unknown_orders(self.comp_off, self.link_off, self.slot_A, self.slot_B, d)
-        N = q + L * d
-        self.fac_off = np.concatenate([[0], np.cumsum(N * N)]).astype(np.int64)
-        self.piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)]).astype(np.int64)
-        self.factors = np.zeros(self.fac_off[-1])
-        self.pivots = np.zeros(self.piv_off[-1], dtype=np.int64)
-        self.codes = np.zeros(len(self.links), dtype=np.int8)
-        self.slip_dir = np.zeros((len(self.links), d))
-        self.cached = np.zeros(len(L), dtype=np.int8)  # star_kernel.NONE, APPROXIMATE, EXACT, STALE
-        self.factored = np.zeros((len(self.links), 3))  # per link: the (k_N, k_T, mu) the factors hold
+        # per star its factors, what they are (star_kernel.NONE, ...), per link their piece, slip
+        # directions and (k_N, k_T, mu): records.Cache
+        (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
+         self.factored) = empty_cache(self.comp_off, self.link_off, d)
 
     @property
     def slip_dir(self):
         """Per star link, the 3D slip direction and projection scale its star's factors hold
-        (star_kernel.piece_branches), (n, d)."""
+        (stars/jacobian.piece_branches), (n, d)."""
         return self._slip_dir
 
     @slip_dir.setter
@@ -119,12 +113,15 @@ class StarLayout(FlatStars):
         self._slip_dir = np.pad(value, ((0, 0), (0, self.frame.shape[1] - value.shape[1])))
 
     def geometry(self):
-        return (self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
-                self.frozen, self.mass, self.fixed, self.elimination)
+        """The layout as the kernel reads it (records.Geometry)."""
+        return Geometry(self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
+                        self.frozen, self.mass, self.fixed, self.elimination)
 
     def cache(self):
-        return (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
-                self.factored)
+        """The stored factors as the kernel reads them (records.Cache): built at each call, as
+        a checkpoint's restore replaces the arrays."""
+        return Cache(self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
+                     self.factored)
 
 
 class StarNewton:
@@ -132,15 +129,17 @@ class StarNewton:
 
     stars: interface/stars.Stars; jump: interface/jumps.Jump (its link table); model: an
     interface model (interface/models.py) giving the cohesive law, its state and friction;
-    m: flat lumped mass of every local dof component (kg); h: time step (s).
+    m: flat lumped mass of every local dof component (kg); h: time step (s); options: the
+    star Newton's tuning (solver/stars/options.StarOptions), with ``tuning`` (its fields by
+    name, e.g. max_iterations=1) replacing some; escalation: the second pass's factor on
+    max_iterations (1: none).
     """
 
-    def __init__(self, stars, jump, model, m, h, max_iterations=100, rtol=RTOL, predict=True, escalation=ESCALATION):
+    def __init__(self, stars, jump, model, m, h, escalation=ESCALATION, options=DEFAULT, **tuning):
         links = jump.links
         self.stars, self.jump, self.model, self.h = stars, jump, model, h
-        self.max_iterations, self.rtol = max_iterations, rtol
-        self.escalation = escalation  # the second pass's factor on max_iterations (1: none)
-        self.predict = predict  # False: every star starts from zero (no affine prediction)
+        self.options = options._replace(**tuning)
+        self.escalation = escalation
         self.first = 0  # stars solved at iteration 1 (from their prediction or from zero) in the last step
         self.timer = PhaseTimer()  # the integrator's, once it owns this solver
         d = stars.gdim
@@ -172,6 +171,15 @@ class StarNewton:
         self._position = np.empty(len(links), dtype=np.int64)  # of each link in the layout
         self._position[self.layout.links] = np.arange(len(links))
 
+    max_iterations = property(lambda self: self.options.max_iterations,
+                              lambda self, n: self._tune(max_iterations=n))
+    rtol = property(lambda self: self.options.rtol, lambda self, rtol: self._tune(rtol=rtol))
+    # False: every star starts from zero (no affine prediction)
+    predict = property(lambda self: self.options.predict, lambda self, predict: self._tune(predict=predict))
+
+    def _tune(self, **fields):
+        self.options = self.options._replace(**fields)
+
     # None, or a stop request (solver/interrupt.py): the star loop then runs in a worker
     # thread, gives up when its flag is set, and the step raises StepInterrupted
     interrupt = None
@@ -189,10 +197,12 @@ class StarNewton:
         lay, h = self.layout, self.h
         g_loc, dg_loc = self._g_loc, self._dg_loc  # link frame: the jumps of u_n and h v_{n-1/2}
         rhs, x_in = self._rhs, self._x_in  # h f and the prescribed increments, per star component
-        star_kernel.gather_stars(lay.comps, lay.comp_off, lay.link_off, lay.slot_A, lay.slot_B, lay.frame, u, v, f, out,
-                                 float(h), g_loc, dg_loc, rhs, x_in)
         state_n = self.model.state_at(self._all_links)
         per_link = self._data_at(state_n)
+        geometry = lay.geometry()
+        # its floors are set once the step's largest terms are known (below)
+        data = StepData(rhs, x_in, g_loc, dg_loc, *per_link, float(h), 0.0, 0.0)
+        star_kernel.gather_stars(lay.comps, geometry, u, v, f, out, data)
         # A star far from the action (a millionth of the largest force or traction of this
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
         # (global, so that 1 and N ranks stop every star alike)
@@ -204,19 +214,18 @@ class StarNewton:
         self.stars.comm.Allreduce(mine, largest, op=MPI.MAX)
         self.timer.lap("communication")
         floor_m, floor_c = FLOOR * largest
+        data = data._replace(floor_m=float(floor_m), floor_c=float(floor_c))
+        outputs = Outputs(self._x, self._r, self._reaction, self._gbar, self._slip, self.status, self.star_residual,
+                          self._counters, self._entry_codes, self._entry_cached)
         interrupt = self.interrupt
         call = _call if interrupt is None else self._responsive  # a stop request: in a worker thread
         abort = self._no_stop if interrupt is None else interrupt.flag
 
-        def solve_stars(cap, todo, regularisation=star_kernel.REGULARISATION):
+        def solve_stars(options, todo):
             self._counters[:] = 0
-            call(star_kernel.solve_stars, *lay.geometry(), rhs, x_in, g_loc, dg_loc, *per_link,
-                 float(h), float(self.rtol), int(cap), bool(self.predict),
-                 float(floor_m), float(floor_c), *lay.cache(), self._x, self._r, self._reaction,
-                 self._gbar, self._slip, self.status, self.star_residual, self._counters,
-                 self._entry_codes, self._entry_cached, float(regularisation), todo, abort)
+            call(star_kernel.solve_stars, geometry, data, lay.cache(), outputs, options, todo, abort)
 
-        solve_stars(self.max_iterations, self._every_star)
+        solve_stars(self.options, self._every_star)
         if self._counters[N_UNCONVERGED] and self.escalation > 1 and not abort[0]:
             self._solve_unconverged_again(solve_stars)
         if interrupt is not None and interrupt.pending():  # every rank asks once a step
@@ -229,17 +238,17 @@ class StarNewton:
         self.first = int(self._counters[N_FIRST])
         self.residual = self.star_residual.max(initial=0.0)
         if self.unconverged:
-            self.failed = self._failed_stars(rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c)
+            self.failed = star_replay.failed(np.flatnonzero(self.status == star_kernel.UNCONVERGED), lay.comps,
+                                             geometry, data, lay.cache(), outputs, self.options)
         # the state after the step, from the accepted jumps; g_mid = (g_n + g_{n+1}) / 2
         changed = self.model.advance(lay.links, self._gbar, g_loc + 0.5 * self._slip, self._r[:, 0])  # star links
         self._book_contact_work(*per_link[1:3])
-        if len(changed):  # the stars whose damage changed: their factors are now stale (CHORD)
+        if len(changed):  # the stars whose damage changed: their factors are now stale (StarOptions.chord)
             self._mark_stale(changed)
-            per_link = self._refresh(changed)
+            self._refresh(changed)  # in place: data holds the new values
         renew = np.flatnonzero(lay.cached == star_kernel.NONE)
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
-            star_kernel.keep_pieces(renew, *lay.geometry(), rhs, self._x, self._r, g_loc, dg_loc, *per_link, float(h),
-                                    *lay.cache())
+            star_kernel.keep_pieces(renew, geometry, data, self._x, self._r, lay.cache(), self.options)
 
     def _solve_unconverged_again(self, solve_stars):
         """Solve the stars the first pass left unconverged again, with ``escalation`` times
@@ -249,27 +258,13 @@ class StarNewton:
         on its own data alone (measured on the cracking bunker-wall-panel, 2,012 stars, one
         unconverged: the second pass over all stars took 12.8 s)."""
         first = self._counters.copy()
-        solve_stars(self.escalation * self.max_iterations, self.status == star_kernel.UNCONVERGED,
-                    SECOND_REGULARISATION)
+        again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
+                                      regularisation=SECOND_REGULARISATION)
+        solve_stars(again, self.status == star_kernel.UNCONVERGED)
         self._counters[ITERATIONS] = max(first[ITERATIONS], self._counters[ITERATIONS])
         self._counters[N_FIRST] += first[N_FIRST]
         self._counters[N_UNCONVERGED] = np.count_nonzero(self.status == star_kernel.UNCONVERGED)
         self._counters[N_STALLED] = np.count_nonzero(self.status == star_kernel.STALLED)
-
-    def _failed_stars(self, rhs, x_in, g_loc, dg_loc, per_link, floor_m, floor_c):
-        """The unconverged stars' kernel inputs, as star_replay.select lays them out."""
-        lay = self.layout
-        stars = np.flatnonzero(self.status == star_kernel.UNCONVERGED)
-        geometry = dict(zip(star_replay.GEOMETRY, lay.geometry()))
-        per_comp = {k: geometry[k] for k in ("mass", "fixed")} | dict(rhs=rhs, x_in=x_in, comps=lay.comps)
-        per_link = {k: geometry[k] for k in ("slot_A", "slot_B", "frame", "weight", "rho", "frozen")} | dict(
-            g_n=g_loc, dg=dg_loc, **dict(zip(("mu", "shift", "cohesion_T", "k_N", "k_T"), per_link)),
-            codes=self._entry_codes, slip_dir=lay.slip_dir, factored=lay.factored)
-        failed = star_replay.select(stars, lay.comp_off, lay.link_off, per_comp, per_link)
-        failed.update(cached=self._entry_cached[stars], residual=self.star_residual[stars], star=stars,
-                      h=self.h, rtol=self.rtol, max_iterations=self.max_iterations, predict=self.predict,
-                      floor_m=floor_m, floor_c=floor_c)
-        return failed
 
     @property
     def r(self):
@@ -307,14 +302,13 @@ class StarNewton:
 
     def _refresh(self, changed):
         """The kernel's per-link data after the star links ``changed`` took new states:
-        evaluated on those links alone."""
+        evaluated on those links alone, into the arrays _data_at gave."""
         known, data = self._data
         links = self.layout.links[changed]
         state = self.model.state_at(links)
         known[links] = state
         for array, values in zip(data, self._link_values(state, links)):
             array[changed] = values
-        return data
 
     def _link_data(self, state, links):
         """(mu, shift, cohesion_T, k_N, k_T) at the states ``state`` of the links ``links``,

@@ -1,9 +1,9 @@
 """The vertex stars a step could not solve, saved and solved again on their own.
 
-When a star of the nonsmooth `imex` step ends above GIVE_UP (solver/star_kernel.py), the
-run stops with ConvergenceError, and each rank writes its failed stars' kernel inputs to
+When a star of the nonsmooth `imex` step ends above StarOptions.give_up
+(solver/star_kernel.py), the run stops with ConvergenceError, and each rank writes its failed stars' kernel inputs to
 ``failed_stars_rank<r>.npz`` in the run's folder: a small flat layout of those stars alone
-(the same arrays solve_stars reads), the pieces their stored factors held and whether they
+(the arrays of solve_stars' records, by their field names), the pieces their stored factors held and whether they
 started from that prediction. Solving them again needs no mesh, no case and no MPI:
 
     dolfrag replay results/bunker-h2/failed_stars_rank0.npz [--max-iterations N]
@@ -16,14 +16,13 @@ import numpy as np
 
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, SLIP, STICK
+from dolfrag.solver.star_kernel import DEFAULT, Cache, Geometry, StepData, empty_outputs, star_at
 
 START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-slip prediction",
          star_kernel.EXACT: "predicted", star_kernel.STALE: "predicted by stale factors"}
-# the kernel's inputs in solve_stars' order (geometry, data, cache); a dump holds all but the
-# stars' elimination order, which replay forms again from their links
-GEOMETRY = ("comp_off", "link_off", "slot_A", "slot_B", "frame", "weight", "rho", "frozen", "mass", "fixed",
-            "elimination")
-DATA = ("rhs", "x_in", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T")
+# the fields of the kernel's records (Geometry, StepData, Cache) a dump holds per component and
+# per link, by the same names; of the rest, the scalars, and not the stars' elimination order
+# (Geometry), which replay forms again from their links
 PER_COMP = ("mass", "fixed", "rhs", "x_in")
 PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
             "codes", "slip_dir", "factored")
@@ -43,6 +42,21 @@ def select(stars, comp_off, link_off, per_comp, per_link):
     return out
 
 
+def failed(stars, comps, geometry, data, cache, out, options):
+    """The dump of ``stars`` (unconverged in the solve_stars call of these records: Geometry,
+    StepData, Cache, Outputs, StarOptions) whose components are comps (local dof
+    components): select's layout of their arrays, with the pieces and start they entered
+    the call with (entry_codes as codes, entry_cached as cached), their residuals and the
+    call's scalars."""
+    fields = geometry._asdict() | data._asdict() | cache._asdict() | {"codes": out.entry_codes}
+    arrays = select(stars, geometry.comp_off, geometry.link_off, {k: fields[k] for k in PER_COMP} | {"comps": comps},
+                    {k: fields[k] for k in PER_LINK})
+    arrays.update(cached=out.entry_cached[stars], residual=out.residual[stars], star=stars, h=data.h,
+                  floor_m=data.floor_m, floor_c=data.floor_c, rtol=options.rtol, max_iterations=options.max_iterations,
+                  predict=options.predict)
+    return arrays
+
+
 def dump(path, arrays, **context):
     """Write a failed-star layout (select's dict of PER_COMP and PER_LINK, plus cached and the
     scalars h, rtol, max_iterations, predict, floor_m, floor_c) and
@@ -50,7 +64,7 @@ def dump(path, arrays, **context):
     np.savez(path, **arrays, **context)
 
 
-def replay(path, regularisation=star_kernel.REGULARISATION, **change):
+def replay(path, regularisation=DEFAULT.regularisation, **change):
     """Solve the stars of the dump at ``path`` again, each alone, from the start the run gave
     them; ``change`` overrides scalars (e.g. max_iterations); regularisation: on sticking
     links' reaction diagonals (a step's second pass takes semismooth.SECOND_REGULARISATION).
@@ -66,26 +80,25 @@ def replay(path, regularisation=star_kernel.REGULARISATION, **change):
         one = slice(s, s + 1)
         star = select(np.array([s]), comp_off, link_off, {k: data[k] for k in PER_COMP},
                       {k: data[k] for k in PER_LINK})
+        elimination = star_kernel.unknown_orders(star["comp_off"], star["link_off"], star["slot_A"], star["slot_B"], d)
+        geometry = Geometry(**{k: star[k] for k in Geometry._fields[:-1]}, elimination=elimination)
+        step = StepData(**{k: star[k] for k in StepData._fields[:-3]}, h=float(data["h"]),
+                        floor_m=float(data["floor_m"]), floor_c=float(data["floor_c"]))
         q, L = star["comp_off"][1], star["link_off"][1]
-        star["elimination"] = star_kernel.unknown_orders(star["comp_off"], star["link_off"], star["slot_A"],
-                                                         star["slot_B"], d)
         N = q + L * d
-        factors, pivots = np.zeros(N * N), np.zeros(2 * N + 1, np.int64)
-        if data["cached"][s] != star_kernel.NONE:  # the stored factors its prediction used
-            k_N, k_T, mu = star["factored"].T.copy()  # the data they were formed with
-            star_kernel.factor_piece(q, L, d, *[star[k] for k in GEOMETRY[2:]], mu, k_N, k_T, float(data["h"]),
-                                     star["codes"], star["slip_dir"], factors, pivots,
-                                     np.empty(N + 3 * d, np.int64), np.empty((L, 5)), np.empty((L, max(d - 1, 1))),
-                                     np.empty(12 * d * d))
-        counters = np.zeros(4, np.int64)
-        star_kernel.solve_stars(
-            *[star[k] for k in GEOMETRY], *[star[k] for k in DATA], float(data["h"]), float(data["rtol"]),
-            int(data["max_iterations"]), bool(data["predict"]), float(data["floor_m"]), float(data["floor_c"]),
-            np.array([0, N * N]), np.array([0, 2 * N + 1]), factors, pivots, star["codes"], star["slip_dir"],
-            data["cached"][one].copy(), star["factored"].copy(), np.zeros(q), np.zeros((L, d)), np.zeros(q),
-            np.zeros((L, d)), np.zeros((L, d)), status[one], residual[one], counters, np.zeros(L, np.int8),
-            np.zeros(1, np.int8), float(regularisation))
-        iterations[s] = counters[star_kernel.ITERATIONS]
+        cache = Cache(np.array([0, N * N]), np.array([0, 2 * N + 1]), np.zeros(N * N), np.zeros(2 * N + 1, np.int64),
+                      star["codes"], star["slip_dir"], data["cached"][one].copy(), star["factored"].copy())
+        if cache.cached[0] != star_kernel.NONE:  # the stored factors its prediction used
+            k_N, k_T, mu = star["factored"].T.copy()  # the data they were formed with, by the run's first pass
+            star_kernel.factor_piece(d, star_at(geometry, step._replace(mu=mu, k_N=k_N, k_T=k_T), 0), cache.codes,
+                                     cache.slip_dir, elimination, cache.factors, cache.pivots,
+                                     np.empty(N + 3 * d, np.int64), star_kernel.evaluation(d, q, L),
+                                     DEFAULT.regularisation)
+        out = empty_outputs(1, q, L, d)
+        options = DEFAULT._replace(rtol=float(data["rtol"]), max_iterations=int(data["max_iterations"]),
+                                   predict=bool(data["predict"]), regularisation=float(regularisation))
+        star_kernel.solve_stars(geometry, step, cache, out, options)
+        status[s], residual[s], iterations[s] = out.status[0], out.residual[0], out.counters[star_kernel.ITERATIONS]
     return status, residual, iterations
 
 

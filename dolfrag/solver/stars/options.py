@@ -1,0 +1,94 @@
+"""The star Newton's tuning, one record (each value with the measurement that set it).
+
+StarOptions is a namedtuple, so that the compiled loop takes it as an argument: a case or a
+step (semismooth's second pass) changes it without recompiling. Read as runtime values the
+fields cost nothing measurable against compile-time constants (benchmarks/step_cost.py,
+before and after the change: see the commit that introduced this record).
+"""
+from typing import NamedTuple
+
+
+class StarOptions(NamedTuple):
+    """The star Newton's tuning (solver/stars/newton.py)."""
+    # A star has converged once its residual is below rtol of its largest term (scaled as in
+    # residual.evaluate): ~1e6 times round-off, where the quadratic phase of Newton has ended.
+    rtol: float = 1e-10
+    max_iterations: int = 100
+    # Start each star from the affine prediction of its stored piece (solver/active_set.py);
+    # False: every star from zero.
+    predict: bool = True
+    # Rigid constraints around a vertex are redundant: the jumps of an interior star sum to
+    # zero around the vertex, so when every link sticks (a rigid threshold or linear-softening
+    # star, or a frictional contact ring) the constraint rows lose rank and the exact Jacobian
+    # is singular. The Newton matrix gets ``regularisation`` on the reaction diagonal
+    # (d phi / d r) of sticking links only (elsewhere Newton stays exact: on a
+    # piecewise-linear piece it lands in one step, which a cold start needs): the residual
+    # stays exact, so the solution does too; Newton converges at a rate of about
+    # ``regularisation`` per iteration instead of exactly, and picks one of the equivalent
+    # reactions in the redundant directions (they do no work: same motion, same energies).
+    regularisation: float = 1e-6
+    # Full Newton steps for ``cycle`` iterations, then backtracking on the scaled residual: a
+    # semi-smooth Newton can cycle between active sets of contact and friction (measured on
+    # the rigid laws, and on linear softening with friction: period-4 cycles of a star whose
+    # sprung link toggles between open and slipping); halving the step (at most ``shortest``
+    # times) from the last point that lowered the residual breaks the cycle.
+    cycle: int = 20
+    shortest: int = 6
+    # A star started from its prediction and not solved after ``restart`` iterations starts
+    # again from zero (x = 0, r = 0), the start that the solver had before predictions:
+    # measured on expanding-bar (linear softening, 3 mm, normalised rate 0.1,
+    # benchmarks/robustness.py), an interior ring of six rigid links wandered from its
+    # prediction through 1,000 iterations, Gauss-Seidel included, and converges from zero in 6.
+    # The restart keeps the schedule of a start from zero (cycle, fallback counted from it):
+    # counted from the first iteration, a random 3D slipping star that needs Gauss-Seidel (36
+    # iterations from zero) met it 20 iterations early and did not converge in 100
+    # (tests/test_star_kernel.py).
+    restart: int = 10
+    # Newton iterations after which a star still unconverged alternates projected
+    # Gauss-Seidel sweeps (gauss_seidel.py, see sweeps) with full Newton steps from their
+    # result (which finish the job once Gauss-Seidel has found the active set).
+    fallback: int = 30
+    # Where the semi-smooth Newton stalls (a link sitting on the kink between stick and slip,
+    # measured on the rigid laws with friction: residuals stuck at 1e-10 .. 2e-9 of the star's
+    # reactions), a star within ``stall`` is accepted from ``fallback`` iterations on.
+    stall: float = 1e-8
+    # From ``fallback`` on, a star whose contact and friction are within ``stall`` and whose
+    # momentum is within ``give_up`` is accepted; so is, after max_iterations, the best
+    # iterate it reached if within ``give_up`` overall (both counted as stalled). Measured on
+    # wall-bending-clamped under imex at 51 ms: a closed star of 6 links (4 broken and in
+    # contact, 1 partly damaged and sticking, 1 intact), whose normal springs (opening only)
+    # sit on their kink at g_N = 0: Gauss-Seidel solves its contact and friction to 1e-10, and
+    # leaves the momentum at 6.3e-7 (the springs' side of the kink read at a gap exact only to
+    # the contact tolerance, 1e-13 m); each Newton polish from there sent it astray. Reading
+    # closed links' springs at the jump contact pins (see residual.evaluate) removed that
+    # case; ``give_up`` stays the last net. 1e-6 of the star's momentum is far below any
+    # error of the discretisation; a star above it still stops the run.
+    give_up: float = 1e-6
+    # Projected Gauss-Seidel sweeps in the first fallback call, doubled at each call up to
+    # ``max_sweeps``: Newton usually finishes after a few hundred, but with friction mu = 0.6
+    # the sweeps crawl (measured: up to 14,455 before the reactions settle, sound-bar with
+    # linear softening), and a fixed budget of 300 let each Newton polish undo them.
+    sweeps: int = 300
+    max_sweeps: int = 20000
+    # Stale factors (the piece's Jacobian for an earlier damage) stay Newton's matrix on their
+    # piece - a chord iteration, which converges to the same solution as the exact matrix - as
+    # long as each chord step divides the scaled residual by 1 / ``chord`` at least; below
+    # that a fresh Jacobian is cheaper. Damage goes on changing every step in links already
+    # broken (an RCCM link's beta keeps falling as w / Y' while it opens): measured on
+    # wall-bending-clamped at 50 ms, 469 of 1,708 links changed their damage in a step and
+    # 197 of its 359 stars were factorised again for them alone.
+    chord: float = 1e-2
+    # A star whose iterate reads another piece than its stored factors' only by links
+    # flipping between contact and open (an intact link crossing g_N = 0: its normal row and
+    # its spring's n n^T in the momentum block change, rank 2 each) solves with those factors
+    # and a Woodbury correction instead of a new Jacobian and LU, for up to ``flips`` such
+    # links, and keeps them as its reference piece for the next step. From ``woodbury``
+    # coupled unknowns on: measured on the damaged 3D bar (150 unknowns, 73 coupled), a new
+    # Jacobian and LU cost 36 us, a solve in cache ~2 us; in 2D the LU (1.5 us) is as cheap as
+    # the correction. Up to 4 links rather than 2: the damaged 3D step 15,545-15,593 ->
+    # 13,271-13,450 ns per element-step (a third of its flips change 3 links or more).
+    flips: int = 4
+    woodbury: int = 32
+
+
+DEFAULT = StarOptions()
