@@ -16,7 +16,7 @@ from dolfrag.post import shpb
 from dolfrag.post.figures import exploded
 from dolfrag.post.fragments import Fragments
 from dolfrag.runner.driver import run
-from dolfrag.solver.semismooth import RTOL
+from dolfrag.solver.star_kernel import DEFAULT as STAR_OPTIONS
 
 L, W = 0.12, 0.04  # m: the specimen, loaded on the left, free end at x = L
 RHO, E = 2350.0, 35e9  # kg/m^3, Pa
@@ -224,20 +224,20 @@ def test_be16_gives_the_same_breaks_and_velocities_on_one_and_two_ranks(be16, tm
         assert a["distance_from_free_end_m"] == pytest.approx(b["distance_from_free_end_m"], abs=1e-12)
     assert [b["free_at_s"] for b in one["blocks"]] == [b["free_at_s"] for b in two["blocks"]]
     # each star stops at StarOptions.rtol (1e-10) of its largest term and each step starts
-    # from the last, so velocities drift apart by up to steps x RTOL of the fastest speed
+    # from the last, so velocities drift apart by up to steps x STAR_OPTIONS.rtol of the fastest speed
     # (test_sound_bar); a layout bug (a missing ghost term) shows at 1e-3 or more
     steps = summary["steps"]
     speed = max(abs(b["velocity_x_m_s"]) for b in one["blocks"])
     assert np.allclose([b["velocity_x_m_s"] for b in one["blocks"]], [b["velocity_x_m_s"] for b in two["blocks"]],
-                       rtol=0, atol=steps * RTOL * speed)
+                       rtol=0, atol=steps * STAR_OPTIONS.rtol * speed)
     # a difference of two such velocities: twice the bound
     assert np.allclose(one["ejection_velocities_m_s"], two["ejection_velocities_m_s"], rtol=0,
-                       atol=2 * steps * RTOL * speed)
+                       atol=2 * steps * STAR_OPTIONS.rtol * speed)
     # the free end's pullback: the same steps, its velocities to the same bound
     assert one["pullback"]["peak_time_s"] == two["pullback"]["peak_time_s"]
     assert one["pullback"]["minimum_time_s"] == two["pullback"]["minimum_time_s"]
     assert one["pullback"]["pullback_m_s"] == pytest.approx(two["pullback"]["pullback_m_s"],
-                                                            abs=2 * steps * RTOL * speed)
+                                                            abs=2 * steps * STAR_OPTIONS.rtol * speed)
     assert one["effective_modulus_Pa"] == pytest.approx(two["effective_modulus_Pa"], rel=1e-12)
 
 

@@ -6,7 +6,7 @@ import dolfrag
 from conftest import mpirun
 from dolfrag.reference import analytic, homogenise
 from dolfrag.case import load_case
-from dolfrag.solver.semismooth import RTOL
+from dolfrag.solver.star_kernel import DEFAULT as STAR_OPTIONS
 
 QUIET = ["--set", "output.fields=0", "--set", "output.figures=false"]
 
@@ -102,17 +102,17 @@ def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
         if name.startswith("newton"):
             continue  # solver diagnostics: iteration counts follow round-off, not physics
         # energies (the balance error is itself round-off) on the scale of the work;
-        # velocities on the scale of the largest one: the star Newton stops at RTOL of
+        # velocities on the scale of the largest one: the star Newton stops at STAR_OPTIONS.rtol of
         # each star's largest term, so a small component (vy ~ 5e-3 vx) inherits errors
         # on the scale of vx
         scale = work if name.endswith("_J") else speed if name.startswith("v") else \
             np.abs(one[name]).max() or 1.0
         # direct star solves (elastic): the same stars on both layouts, so ranks differ by
         # round-off, far below 1e-9 of the column's scale. The star Newton (the other
-        # variants) stops anywhere below RTOL of each star's largest term, at an iterate
+        # variants) stops anywhere below STAR_OPTIONS.rtol of each star's largest term, at an iterate
         # that round-off picks differently on each layout (the iteration counts differ),
-        # and each step starts from the last one's state: up to RTOL per step, accumulated
+        # and each step starts from the last one's state: up to STAR_OPTIONS.rtol per step, accumulated
         # over the run (measured on 2 cores: 5.5e-10 of the speed after 100 steps, 3d-rccm-friction)
         steps = one["step"][-1]
-        tolerance = 1e-9 if variant in ("2d", "3d") else steps * RTOL
+        tolerance = 1e-9 if variant in ("2d", "3d") else steps * STAR_OPTIONS.rtol
         assert np.allclose(one[name], two[name], rtol=0, atol=tolerance * scale), name
