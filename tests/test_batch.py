@@ -96,6 +96,9 @@ def slurm():
     except subprocess.TimeoutExpired as err:
         pytest.fail(f"{START} start: no answer in 120 s: {err.stdout}{err.stderr}")
     assert started.returncode == 0, f"the local Slurm did not start ({START} start):\n{started.stdout}{started.stderr}"
+    env = dict(os.environ, SLURM_CONF=SLURM_CONF)
+    cpus = subprocess.run(["sinfo", "-h", "-o", "%c"], capture_output=True, text=True, env=env).stdout.strip()
+    assert cpus.isdigit() and int(cpus) >= 2, f"the local Slurm's node has CPUs={cpus!r}: the 2-rank jobs would pend"
     return dict(os.environ, SLURM_CONF=SLURM_CONF, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1",
                 OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
 
@@ -116,7 +119,7 @@ def wait_for(job, env, log, timeout):
             return fields
         time.sleep(2)
     subprocess.run(["scancel", job], env=env)
-    pytest.fail(f"job {job} still {fields['JobState']} after {timeout} s; its log:\n"
+    pytest.fail(f"job {job} still {fields['JobState']} (Reason={fields.get('Reason')}) after {timeout} s; its log:\n"
                 f"{log.read_text() if log.exists() else '(none)'}")
 
 

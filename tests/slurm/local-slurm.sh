@@ -14,7 +14,9 @@ set -euo pipefail
 DIR=${DOLFRAG_SLURM_DIR:-/var/spool/dolfrag-slurm}
 export SLURM_CONF=$DIR/slurm.conf
 NODE=$(hostname -s)
-CPUS=$(nproc)
+# the hardware as slurmd itself sees it: nproc would follow OMP_NUM_THREADS (a CI machine that
+# sets it to 1 declared a 1-CPU node, and the 2-rank test jobs pended for ever)
+CPUS=$(slurmd -C | sed -n 's/.* CPUs=\([0-9]*\).*/\1/p')
 MEMORY_MB=$(awk '/MemTotal/ {print int($2 / 1024 * 0.9)}' /proc/meminfo)
 
 write_conf() {
@@ -62,6 +64,10 @@ up() {
     scontrol ping 2>/dev/null | grep -q "is UP" && sinfo -h -o %T 2>/dev/null | grep -qx -E "idle|allocated|mixed|completing"
 }
 
+stale() {  # daemons left up with another configuration (another CPU count, say)
+    [ "$(sinfo -h -o %c 2>/dev/null)" != "$CPUS" ]
+}
+
 start_munge() {
     # the pid file first: without munged, the munge client retries for about a minute
     if pgrep -F /run/munge/munged.pid >/dev/null 2>&1; then
@@ -73,10 +79,11 @@ start_munge() {
 }
 
 start() {
-    if up; then
+    if up && ! stale; then
         echo "Slurm is up ($SLURM_CONF)"
         return
     fi
+    stop >/dev/null
     write_conf
     start_munge
     pgrep -F "$DIR/slurmctld.pid" >/dev/null 2>&1 || slurmctld -f "$SLURM_CONF"
