@@ -11,8 +11,9 @@ from dolfrag.solver.stars.lu import lu_factor, lu_solve
 # gauss_seidel's workspaces, flat (sized for the largest star of a call, n = L d unknowns of
 # reactions): the momentum matrix A (q, q), B^T W (q, n), the springs' constants (n,), the
 # right-hand side (q,), the pivots (q,), x = x0 + X r (q,), (q, n), a column (q,), the jumps
-# c + G r (n,), (n, n), per link its augmentation (L,), and two vectors of a link (d,).
-SweepSpace = namedtuple("SweepSpace", "A P spring b0 piv x0 X column c G rho y z")
+# c + G r (n,), (n, n), per link its augmentation (L,), two vectors of a link (d,), and per
+# link the links its rows of G couple it to (L, L) and how many (L,).
+SweepSpace = namedtuple("SweepSpace", "A P spring b0 piv x0 X column c G rho y z coupled n_coupled")
 
 
 @njit(cache=True, error_model="numpy")
@@ -21,7 +22,8 @@ def sweep_space(d, q_max, L_max):
     n = L_max * d
     return SweepSpace(np.empty(q_max * q_max), np.empty(q_max * n), np.empty(n), np.empty(q_max),
                       np.empty(q_max, dtype=np.int64), np.empty(q_max), np.empty(q_max * n), np.empty(q_max),
-                      np.empty(n), np.empty(n * n), np.empty(L_max), np.empty(d), np.empty(d))
+                      np.empty(n), np.empty(n * n), np.empty(L_max), np.empty(d), np.empty(d),
+                      np.empty(L_max * L_max, dtype=np.int64), np.empty(L_max, dtype=np.int64))
 
 
 @njit(cache=True, error_model="numpy")
@@ -114,6 +116,9 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, ws):
         for i in range(1, d):
             big = max(big, G[l * d + i, l * d + i])
         rho[l] = 1.0 / big if big > 0 else 0.0
+    coupled = ws.coupled[:L * L].reshape((L, L))
+    n_coupled = ws.n_coupled[:L]
+    _couplings(d, L, G, coupled, n_coupled)
     y, z = ws.y, ws.z
     for _ in range(sweeps):
         change, largest = 0.0, 0.0
@@ -122,7 +127,8 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, ws):
                 continue
             for i in range(d):
                 s = c[l * d + i]
-                for k in range(L):
+                for m in range(n_coupled[l]):
+                    k = coupled[l, m]
                     for j in range(d):
                         s += G[l * d + i, k * d + j] * r[k, j]
                 y[i] = s
@@ -151,3 +157,24 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, ws):
                 s += X[i, l * d + j] * r[l, j]
         x[i] = s
 
+
+
+@njit(cache=True, error_model="numpy")
+def _couplings(d, L, G, coupled, n_coupled):
+    """Per link l, the links k whose block G[l, k] is not all zero, in increasing order
+    (coupled[l, :n_coupled[l]]). A sweep sums only over them: the same sums as over every
+    link, less exact zeros. Without springs A is the diagonal mass, and two links are
+    coupled only through a shared copy: in 3D a copy has three facets at the vertex, so a
+    link meets about 6 of the star's 20-50 links (measured on the cracking bunker-wall-panel,
+    linear softening, where Gauss-Seidel takes most of a stalled star's time)."""
+    for l in range(L):
+        n = 0
+        for k in range(L):
+            nonzero = False
+            for i in range(d):
+                for j in range(d):
+                    nonzero = nonzero or G[l * d + i, k * d + j] != 0.0
+            if nonzero:
+                coupled[l, n] = k
+                n += 1
+        n_coupled[l] = n
