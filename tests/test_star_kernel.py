@@ -205,6 +205,43 @@ def test_an_iterate_gone_nan_is_never_read_as_converged(d):
         assert np.isnan(R).any() and scaled_m == np.inf and scaled_c == np.inf
 
 
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("springs", [False, True])
+def test_gauss_seidel_sweeps_are_the_dense_sweeps_of_the_delassus_form(d, springs):
+    """The projected Gauss-Seidel sums each link's row of G only over the links it couples to:
+    the same sweeps as over every link. Reference: the sweeps in numpy over the dense G and c
+    the kernel formed (left in its workspace), from the same start. Without springs the mass
+    is diagonal and G couples only links sharing a copy, so rows are skipped."""
+    from dolfrag.solver.stars.gauss_seidel import gauss_seidel, sweep_space
+    rng = np.random.default_rng(23 + d)
+    for trial in range(10):
+        star = _star(rng, d, k=8, L=12, fixed_comps=[0] if trial % 2 else [])
+        if not springs:
+            star["k_N"][:], star["k_T"][:] = 0.0, 0.0
+        x, r = rng.normal(size=star["q"]), rng.normal(size=(star["L"], d))
+        _, _, _, gbar, code, _, _ = _evaluate(star, x, r)
+        ws = sweep_space(d, star["q"], star["L"])
+        x_k, r_k = x.copy(), r.copy()
+        sweeps = 1 + trial % 4
+        gauss_seidel(d, _record(star), x_k, r_k, gbar.copy(), code.copy(), 0.0, sweeps, ws)
+        n, L = star["L"] * d, star["L"]
+        G, c, rho = ws.G[:n * n].reshape(n, n), ws.c[:n], ws.rho[:L]
+        if not springs:
+            assert (ws.n_coupled[:L] < L).any()  # some rows skip links
+        for _ in range(sweeps):  # the kernel's projection, in numpy, over dense rows
+            for l in range(L):
+                if rho[l] <= 0:
+                    continue
+                y = c[l * d:(l + 1) * d] + G[l * d:(l + 1) * d] @ r.ravel()
+                r_N = max(-star["shift"][l], r[l, 0] - rho[l] * y[0])
+                z = r[l, 1:] - rho[l] * (y[1:] - star["g_n"][l, 1:])
+                radius = star["mu"][l] * max(r_N + star["shift"][l], 0.0) + star["cohesion_T"][l]
+                norm = np.linalg.norm(z)
+                r[l, 0], r[l, 1:] = r_N, z * (min(1.0, radius / norm) if norm > 0 else 1.0)
+        # the same sums less exact zeros, in another order of the dense products: a few ulps
+        assert np.allclose(r_k, r, rtol=0, atol=1e-12 * np.abs(r).max())
+
+
 def _unknowns(star, z):
     q, L, d = star["q"], star["L"], star["d"]
     return z[:q].copy(), np.ascontiguousarray(z[q:].reshape(d, L).T)
