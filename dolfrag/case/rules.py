@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dolfrag import bunker, mixture
+from dolfrag import bunker
+from dolfrag.loads import mixture
 from dolfrag.interface.models import law as _law
 from dolfrag.loads.explosives import EQUIVALENCES, EQUIVALENTS, SOURCE as EXPLOSIVES_SOURCE
 from dolfrag.case.schema import CaseError, _show
@@ -238,7 +239,7 @@ def _check_charge(load: Load, geometry: Geometry) -> None:
 
 
 def _check_h2_air(load: Load) -> None:
-    """The mixture of an h2-air load within its limits (mixture.py), and the keys that
+    """The mixture of an h2-air load within its limits (loads/mixture.py), and the keys that
     belong to one regime only."""
     _check_mixture(load)
     only = {"deflagration": ("rise",), "detonation": ("decay", "damping")}
@@ -255,7 +256,7 @@ def _check_h2_air(load: Load) -> None:
 
 def _check_mixture(load: Load) -> None:
     """h2_fraction within its oxidiser's limits; a diluted oxygen mixture no more diluted
-    than air and of an equivalence ratio within air's limits (mixture.py's docstring)."""
+    than air and of an equivalence ratio within air's limits (loads/mixture.py's docstring)."""
     low, high = mixture.H2_LIMITS[load.oxidizer]
     if not low <= load.h2_fraction <= high:
         raise CaseError(f"load.h2_fraction = {load.h2_fraction!r}: with load.oxidizer = {load.oxidizer!r} must be "

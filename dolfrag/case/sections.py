@@ -8,8 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from dolfrag import bunker, concrete, mixture
+from dolfrag import bunker, concrete
 from dolfrag.interface.models import LAWS as _LAW_REGISTRY
+from dolfrag.loads import mixture
 from dolfrag.loads.charge import BURSTS
 from dolfrag.loads.explosives import EQUIVALENCES, EXPLOSIVES
 from dolfrag.case.schema import _f
@@ -169,7 +170,7 @@ class Load:
     reverberations (frequency, amplitude relative to plateau, damping time) and an optional
     local peak, all times (1 - t/duration).
     h2-air: a hydrogen explosion (docs/loads.md), the deflagration or detonation shape
-    (`regime`) with its levels computed from the mixture (dolfrag/gas.py: h2_fraction in air
+    (`regime`) with its levels computed from the mixture (dolfrag/loads/gas.py: h2_fraction in air
     or in oxygen, `oxidizer`, an oxygen mixture's optional `diluent`, T0, p0),
     the overpressures reduced by `heat_loss`, the acoustic frequency c_b / (2 room_length);
     `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`

@@ -28,7 +28,7 @@ from dolfrag.solver.imex import Imex
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 from dolfrag.solver.theta import Theta
-from dolfrag.stretch import Stretch
+from dolfrag.loads.stretch import Stretch
 
 REPORT_ERRORS = "report_errors.txt"  # the tracebacks of the parts of a run's end that failed
 
