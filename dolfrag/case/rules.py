@@ -15,8 +15,33 @@ from dolfrag.case.sections import BOX_BOUNDARIES, Case, Geometry, Load, Rebar
 
 def _check(case: Case) -> None:
     """Rules linking several keys or sections."""
-    load, sup, known = case.load, case.supports, case.geometry.boundaries
-    law = case.interface
+    _check_interface(case)
+    load = case.load
+    if load.signal == "triangular" and load.duration < load.rise:
+        raise CaseError(f"load.duration = {load.duration!r}: "
+                        f"must be >= load.rise = {load.rise!r} (s)")
+    _check_load(load, case.geometry)
+    if load.kind == "stretch":
+        _check_stretch(case)
+    _check_boundaries(case)
+    if case.geometry.kind == "bunker":
+        _check_bunker(case.geometry)
+    _check_rebar(case.rebar, case.geometry)
+    _check_groups(case)
+    late = [t for t in case.output.fragments_at if t > case.time.end]
+    if late:
+        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
+                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
+    _check_layers(case)
+    if load.boundary in case.supports.clamped:
+        raise CaseError(f"supports.clamped = {_show(list(case.supports.clamped))}: {load.boundary!r} is the "
+                        "load.boundary (the loaded boundary may not be clamped)")
+
+
+def _check_interface(case: Case) -> None:
+    """The interface law's keys among themselves, against the mesh (rccm_decoupled's
+    stiffness) and against the time scheme."""
+    law, load = case.interface, case.load
     if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
         raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
                         "rccm needs exactly one of them (Pa, J/m^2)")
@@ -38,12 +63,12 @@ def _check(case: Case) -> None:
             raise CaseError(f"interface.G_c = {law.G_c!r}: rccm_decoupled needs C_N > sigma_c^2 / "
                             f"(2 G_c), i.e. G_c > {law.sigma_c**2 / (2 * C_N):.3g} J/m^2 with C_N = "
                             f"{C_N:.3g} Pa/m (or raise interface.C_N / stiffness_ratio)")
-    if load.signal == "triangular" and load.duration < load.rise:
-        raise CaseError(f"load.duration = {load.duration!r}: "
-                        f"must be >= load.rise = {load.rise!r} (s)")
-    _check_load(load, case.geometry)
-    if load.kind == "stretch":
-        _check_stretch(case)
+
+
+def _check_boundaries(case: Case) -> None:
+    """Every boundary a key names exists (on a geometry that knows its boundaries), and is in
+    one support list at most."""
+    load, sup, known = case.load, case.supports, case.geometry.boundaries
     named = {**({"load.boundary": load.boundary} if load.kind == "pressure" else {}),
              "supports.rollers": list(sup.rollers),
              "supports.clamped": list(sup.clamped), "supports.simple": list(sup.simple),
@@ -60,31 +85,25 @@ def _check(case: Case) -> None:
             if kind < other and both:
                 raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
                                 f"supports.{other} (a boundary may be in one list only)")
-    if case.geometry.kind == "bunker":
-        _check_bunker(case.geometry)
-    _check_rebar(case.rebar, case.geometry)
-    _check_groups(case)
-    late = [t for t in case.output.fragments_at if t > case.time.end]
-    if late:
-        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
-                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
-    bars = case.rebar
-    if bars.faces:
-        if case.geometry.kind == "file" and case.geometry.tdim == 2:
-            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box, bunker or "
-                            "a 3D mesh file (geometry.dim = 3)")
-        for key in ("cover", "diameter", "spacing"):
-            if getattr(bars, key) is None:
-                raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
-        geometry = case.geometry
-        thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else np.inf if geometry.kind == "file"
-                    else min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
-        if not bars.cover < thinnest / 2:
-            raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
-                            "smallest extent), or the layers cross")
-    if load.boundary in sup.clamped:
-        raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
-                        "load.boundary (the loaded boundary may not be clamped)")
+
+
+def _check_layers(case: Case) -> None:
+    """Bar layers have a body to lie in: a geometry that has faces to lay them along, their
+    sizes given, and a cover (m) under half the body's smallest extent."""
+    bars, geometry = case.rebar, case.geometry
+    if not bars.faces:
+        return
+    if geometry.kind == "file" and geometry.tdim == 2:
+        raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box, bunker or "
+                        "a 3D mesh file (geometry.dim = 3)")
+    for key in ("cover", "diameter", "spacing"):
+        if getattr(bars, key) is None:
+            raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
+    thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else np.inf if geometry.kind == "file"
+                else min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
+    if not bars.cover < thinnest / 2:
+        raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
+                        "smallest extent), or the layers cross")
 
 
 BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)
