@@ -39,30 +39,21 @@ def _check(case: Case) -> None:
 
 
 def _check_interface(case: Case) -> None:
-    """The interface law's keys among themselves, against the mesh (rccm_decoupled's
-    stiffness) and against the time scheme."""
-    law, load = case.interface, case.load
-    if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
-        raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
-                        "rccm needs exactly one of them (Pa, J/m^2)")
-    if law.C_T is not None and law.shear_ratio is not None:
-        raise CaseError(f"interface.C_T = {law.C_T:g} Pa/m, interface.shear_ratio = {law.shear_ratio!r}: "
-                        "give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
-    if case.time.scheme == "theta" and load.signal == "charge" and case.time.dt is None:
+    """The interface law's own rules (its entry in interface/models.LAWS, with the normal
+    stiffness of the stiffness rule), the stiffness keys, and what the time scheme needs."""
+    interface, law = case.interface, _law(case.interface)
+    problem = law.rules(interface, interface.stiffness(case.material.E, case.mesh.size)[0])
+    if problem:
+        raise CaseError(problem)
+    if interface.C_T is not None and interface.shear_ratio is not None:
+        raise CaseError(f"interface.C_T = {interface.C_T:g} Pa/m, interface.shear_ratio = "
+                        f"{interface.shear_ratio!r}: give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
+    if case.time.scheme == "theta" and case.load.signal == "charge" and case.time.dt is None:
         raise CaseError("time.dt: missing (required when time.scheme is 'theta' and load.signal is 'charge': "
                         "the charge's shortest positive phase is known only on the mesh), s")
-    if case.time.scheme == "theta" and not _law(law).theta:
-        raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
+    if case.time.scheme == "theta" and not law.theta:
+        raise CaseError(f"time.scheme = 'theta' with interface.law = {interface.law!r}: not available yet "
                         "(the rigid laws run with 'imex')")
-    if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
-        raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
-                        f"{law.law!r}), Pa")
-    if law.law == "rccm_decoupled":
-        C_N = law.stiffness(case.material.E, case.mesh.size)[0]
-        if C_N <= law.sigma_c**2 / (2 * law.G_c):
-            raise CaseError(f"interface.G_c = {law.G_c!r}: rccm_decoupled needs C_N > sigma_c^2 / "
-                            f"(2 G_c), i.e. G_c > {law.sigma_c**2 / (2 * C_N):.3g} J/m^2 with C_N = "
-                            f"{C_N:.3g} Pa/m (or raise interface.C_N / stiffness_ratio)")
 
 
 def _check_boundaries(case: Case) -> None:
