@@ -16,6 +16,8 @@ from dolfrag.case.sections import BOX_BOUNDARIES, Case, Geometry, Load, Rebar
 def _check(case: Case) -> None:
     """Rules linking several keys or sections."""
     _check_interface(case)
+    if case.time.scheme == "theta":
+        _check_theta(case)
     load = case.load
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
@@ -40,7 +42,7 @@ def _check(case: Case) -> None:
 
 def _check_interface(case: Case) -> None:
     """The interface law's own rules (its entry in interface/models.LAWS, with the normal
-    stiffness of the stiffness rule), the stiffness keys, and what the theta scheme needs."""
+    stiffness of the stiffness rule) and the stiffness keys."""
     interface = case.interface
     problem = _law(interface).rules(interface, interface.stiffness(case.material.E, case.mesh.size)[0])
     if problem:
@@ -48,8 +50,6 @@ def _check_interface(case: Case) -> None:
     if interface.C_T is not None and interface.shear_ratio is not None:
         raise CaseError(f"interface.C_T = {interface.C_T:g} Pa/m, interface.shear_ratio = "
                         f"{interface.shear_ratio!r}: give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
-    if case.time.scheme == "theta":
-        _check_theta(case)
 
 
 def _check_theta(case: Case) -> None:

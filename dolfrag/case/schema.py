@@ -63,8 +63,8 @@ class _Spec:
         return self.when() if callable(self.when) else self.when
 
     def condition(self, prefix: str) -> str:
-        field, *values = self.gate()
-        return f"{prefix}.{field} is " + " or ".join(map(repr, values))
+        discriminator, *values = self.gate()
+        return f"{prefix}.{discriminator} is " + " or ".join(map(repr, values))
 
 
 def _f(kind: str, default: Any = _REQ, bounds: str = "", unit: str = "", **kw) -> Any:
