@@ -77,6 +77,46 @@ def test_fit_segments_meet_where_they_join(burst, name, Z):
     assert ends[1] == pytest.approx(ends[0], rel=0.02)
 
 
+# Kingery & Bulmash (1984) give every fit twice, in metric and in imperial units (Z in
+# ft/lb^(1/3); psi, ms/lb^(1/3), psi ms/lb^(1/3)); the two share K_1 and C_1.. and differ only
+# in K_0 and C_0, by the change of units. The imperial constants (K_0, C_0) of each segment,
+# in order, as tabulated beside the metric ones in the public repository
+# lightsquared/kingery_bulmash (1_configuration/models/kb_equation_data.csv, commit b5f5fe1):
+# a second transcription of the report, whose imperial constants carry none of the slips
+# of its metric ones (there, the free-air reflected pressure's C_2 = 0.351 for 0.0351, C_3
+# and the sign of C_5, and the surface incident impulse's second C_0 = 1.67232 for 1.67282).
+IMPERIAL = {
+    "free_air": {"t_a": [(-0.805017341, -0.042373394)], "P_so": [(-0.756579302, 1.772849705)],
+                 "P_r": [(-0.756579302, 2.391061349)],
+                 "t_o": [(0.20944006, -0.801052723), (-5.067784938, 0.115874238), (-4.395901341, 0.506592104)],
+                 "i_s": [(1.045048777, 1.435341365), (-2.679125195, 0.599008468)],
+                 "i_r": [(-0.75765992, 1.605792801)]},
+    "surface": {"t_a": [(-0.755684473, -0.173607601)], "P_so": [(-0.756579302, 1.942250201)],
+                "P_r": [(-0.789312406, 2.564313211)],
+                "t_o": [(-0.179021705, -0.728671776), (-5.859098123, 0.200965073), (-4.926994911, 0.57246247)],
+                "i_s": [(0.832468843, 1.571592406), (-2.913586168, 0.719852656)],
+                "i_r": [(-0.781951689, 1.752916778)]},
+}
+FT_PER_M, LB_PER_KG, KPA_PER_PSI = 1.0 / 0.3048, 1.0 / 0.45359237, 6.894757
+
+
+@pytest.mark.parametrize("burst,name", [(b, n) for b in charge.BURSTS for n in charge.PARAMETERS])
+def test_metric_constants_are_the_imperial_ones_in_other_units(burst, name):
+    # Z_ft = Z_m ft/m / (lb/kg)^(1/3), so K_0 (metric) = K_0 (imperial) + K_1 log10 of that
+    # factor; Y (metric) = Y (imperial) x kPa/psi (pressures), x (lb/kg)^(1/3) (times), or
+    # both (impulses). The report's own rounding of the factors leaves up to 4.5e-6 (K_0) and
+    # 4.1e-7 (C_0): a slip in the first four decimals of either is 1e-4 or more
+    scale_Z = np.log10(FT_PER_M / np.cbrt(LB_PER_KG))
+    scale_Y = {"t_a": np.log10(np.cbrt(LB_PER_KG)), "t_o": np.log10(np.cbrt(LB_PER_KG)),
+               "P_so": np.log10(KPA_PER_PSI), "P_r": np.log10(KPA_PER_PSI),
+               "i_s": np.log10(KPA_PER_PSI * np.cbrt(LB_PER_KG)), "i_r": np.log10(KPA_PER_PSI * np.cbrt(LB_PER_KG))}[name]
+    segments = charge.FITS[burst][name]
+    assert len(segments) == len(IMPERIAL[burst][name])
+    for segment, (K0, C0) in zip(segments, IMPERIAL[burst][name]):
+        assert segment.K[0] == pytest.approx(K0 + segment.K[1] * scale_Z, abs=1e-5)
+        assert segment.C[0] == pytest.approx(C0 + scale_Y, abs=1e-5)
+
+
 @pytest.mark.parametrize("burst", charge.BURSTS)
 def test_times_and_impulses_scale_as_cube_root_of_W_at_equal_Z(burst):
     # Hopkinson-Cranz: 8 W at 2 R is the same Z; pressures equal, times and impulses

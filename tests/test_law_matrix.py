@@ -35,7 +35,8 @@ REFUSED = {
 TWO_RANKS = {"bunker-h2", "expanding-bar", "spall-bar", "sound-bar", "shpb-be16"}
 # A coarser mesh where the case's own takes a minute to build and step (the laws and the
 # reports do not depend on the mesh size)
-COARSER = {"bunker-two-rooms": ["mesh.size=0.2"]}
+COARSER = {"bunker-two-rooms": ["mesh.size=0.2"], "chiquito-slab-s5": ["mesh.size=0.15"],
+           "mendonca-slab": ["mesh.size=0.08"]}
 # A run of a few explicit steps: the reports, observers and figures all run at its end. The
 # step of these meshes is 0.05-0.1 of a P-wave's time across mesh.size (their smallest cells
 # set it): DT_SHARE of it gives 3-6 steps

@@ -14,6 +14,8 @@ EQUIVALENTS = {
     "C4": (1.37, 1.19),
     "Composition B": (1.11, 0.98),
     "H-6": (1.38, 1.15),
+    # a public port of the DDESB Blast Effects Computer (errorgon/pressure) takes 1.38, 1.14 for
+    # pentolite and 1.27 for PETN's impulse: not settled against Table 2-1 (docs/notes/charge-load.md)
     "Pentolite": (1.42, 1.00),
     "PETN": (1.27, None),
     "Tritonal": (1.07, 0.96),
