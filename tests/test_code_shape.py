@@ -4,7 +4,7 @@ MAX_LINES without saying why.
 A function's length is the lines of its body after the docstring (the docstring is where
 units, shapes and the reason for a length go, and is not held against it). Functions
 compiled by numba (a ``njit`` or ``jit`` decorator) are exempt: a kernel keeps its loop in
-one function so that the compiler sees it whole (DESIGN: one compiled loop over all stars).
+one function so that the compiler sees it whole (one compiled loop over all the stars).
 Any other function over MAX_LINES says why in its docstring with a sentence starting with
 LONG_BECAUSE, e.g. "Long on purpose: the steps share one state that a split would pass
 around in ten arguments."
