@@ -73,7 +73,7 @@ def measure(cells, steps, comm, law, scheme="imex", h_factor=1.0, dim=2, overrid
     n_cells = space.mesh.topology.index_map(dim).size_global
     if scheme == "theta":
         return (n_cells, *measure_theta(integ, loads.unit_pressure_vector(space, domain, case.load.boundary),
-                                        steps, comm, h_factor))
+                                        steps, comm, h_factor, problem.law))
     for _ in range(1 + skip):  # warm-up (and, on a fresh install, the star kernel's compilation)
         integ.step()
     cpu = []
@@ -136,10 +136,11 @@ def peak_memory(comm):
     return comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX) / 1024
 
 
-def measure_theta(imex, load, steps, comm, h_factor):
-    """The theta step on the imex integrator's mesh and model, h_factor times its step."""
+def measure_theta(imex, load, steps, comm, h_factor, law):
+    """The theta step on the imex integrator's mesh and model (of the interface/models.Law
+    ``law``), h_factor times its step."""
     integ = Theta(imex.space, imex.bulk, imex.jump, imex.model, load, imex.pressure, h_factor * imex.h, 0.5,
-                  imex.interface.stars.constrained)
+                  imex.interface.stars.constrained, contact=not law.springs)
     for _ in range(5):
         integ.step()
     iterations = []

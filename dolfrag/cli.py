@@ -49,8 +49,9 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from dolfrag import __version__, batch, gas, guards, loads, outdir
+from dolfrag import __version__, batch, guards, loads, outdir
 from dolfrag.case import CaseError, builtin_case_text, builtin_cases, load_case
+from dolfrag.loads import gas
 from dolfrag.runner.driver import REPORT_ERRORS, run
 from dolfrag.runner.signals import EXIT_CODES
 from dolfrag.solver import star_replay

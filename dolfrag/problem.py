@@ -19,7 +19,7 @@ from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
 from dolfrag.solver.theta import accuracy_time_step
-from dolfrag.stretch import end_components
+from dolfrag.loads.stretch import end_components
 
 
 @dataclass(frozen=True)

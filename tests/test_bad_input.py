@@ -130,6 +130,10 @@ BAD = {
     "file bars along one axis": ("bunker-two-rooms", ["rebar.direction='x'"], [], "rebar.direction"),
     "file bars on a group not in the mesh": ("bunker-two-rooms", ["rebar.faces=['roof']", "mesh.size=0.5"], [],
                                              "roof"),
+    "theta on a wall in bending that breaks": ("wall-bending-clamped", [
+        "time.scheme=theta", "time.dt=1e-4", "material.grade=", "material.E=35e9", "material.nu=0.2",
+        "material.rho=2350", "interface.law=rccm", "interface.sigma_c=4e6", "interface.rate_effect="], [],
+        "load.boundary"),
     "bunker material group not built": ("bunker-h2", ["materials.door.E=1e10", "materials.door.nu=0.2",
                                                       "materials.door.rho=2300.0"], [], "materials.door"),
 }

@@ -1,4 +1,4 @@
-"""The hydrogen-air explosion load (dolfrag/gas.py, loads.h2_air_shape, docs/loads.md): the
+"""The hydrogen-air explosion load (dolfrag/loads/gas.py, loads.h2_air_shape, docs/loads.md): the
 AICC and Chapman-Jouguet states against Cantera equilibria computed here by other routes and
 against published values; the signal's peak, t^3 rise and acoustic frequency; the per-mixture
 cache; `dolfrag loads`; the same load on 1 and 2 ranks."""
@@ -13,9 +13,10 @@ from scipy.optimize import brentq, minimize_scalar
 
 from conftest import dolfrag_cli, mpirun
 from test_signals import crossing_frequency
-from dolfrag import gas, loads
+from dolfrag import loads
 from dolfrag.case import load_case
-from dolfrag.mixture import Mixture
+from dolfrag.loads import gas
+from dolfrag.loads.mixture import Mixture
 
 ATM = 101325.0            # Pa
 STOICHIOMETRIC = 2 / 6.76  # 2 H2 + (O2 + 3.76 N2): 0.296 H2 by volume

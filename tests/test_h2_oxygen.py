@@ -1,4 +1,4 @@
-"""Hydrogen in oxygen (dolfrag/mixture.py, gas.py, docs/loads.md "The oxidiser"): the CJ
+"""Hydrogen in oxygen (dolfrag/loads/mixture.py, gas.py, docs/loads.md "The oxidiser"): the CJ
 detonation of stoichiometric H2-O2 against NASA CEA's published one, the thermodynamic data
 past their fitted range against NASA Glenn's, the mixture's spelling against air's, the
 cache key, the built-in cases' load, `dolfrag loads`, and the same load on 1 and 2 ranks."""
@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import dolfrag_cli, mpirun
-from dolfrag import gas, loads
+from dolfrag import loads
 from dolfrag.case import load_case
-from dolfrag.mixture import Mixture, composition
+from dolfrag.loads import gas
+from dolfrag.loads.mixture import Mixture, composition
 
 ATM = 101325.0      # Pa
 BAR = 1e5           # Pa

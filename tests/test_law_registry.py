@@ -4,6 +4,7 @@ tensile strength post-processing reads against the peak of the law's own tractio
 import numpy as np
 import pytest
 
+import dolfrag
 from dolfrag.case import CaseError, load_case
 from dolfrag.interface import laws, models
 
@@ -43,7 +44,7 @@ def test_each_law_builds_its_model_and_states_its_strength(name):
     c = case(name)
     law = models.law(c.interface)
     model = models.build(c.interface, E, SIZE, 7, h=1e-8)
-    assert type(model) is MODELS[name] and model.can_break == law.breakable
+    assert type(model) is MODELS[name] and law.breakable == (name != "elastic")
     assert law.rigid == (model.C_N is None)  # a rigid law has no springs
     C_N, C_T = c.interface.stiffness(E, SIZE)
     strength = law.tensile_strength(c.interface, C_N)
@@ -72,3 +73,35 @@ def test_the_flags_decide_what_the_case_may_ask(name):
             case(name, stretch)
     else:
         case(name, stretch)
+
+
+def _toy_rules(interface, C_N):
+    return None if interface.sigma_c is not None else "interface.sigma_c: the toy law needs it, Pa"
+
+
+# The toy law: the reference paper's RCCM given by its strength alone (w = sigma_c^2 / C_N),
+# without friction, viscosity or internal friction; one entry, nothing else
+TOY = models.Law(build=lambda i, n, C_N, C_T, h, k: models.Rccm(n, C_N, C_T, i.sigma_c**2 / C_N, h=h),
+                 keys=("sigma_c",), rules=_toy_rules, breakable=True, theta=True)
+# the sound bar's 1 MPa pulse comes back from the free end as 1 MPa of tension: a strength
+# of 0.5 MPa breaks it there; a coarser mesh keeps the run short
+SPALL = ["interface.sigma_c=5e5", "mesh.size=0.004", "output.fields=0", "output.figures=false"]
+
+
+def test_a_law_added_as_one_registry_entry_brings_its_keys_and_rules_and_runs(tmp_path, monkeypatch):
+    monkeypatch.setitem(models.LAWS, "toy", TOY)
+    toy = load_case("sound-bar", ["interface.law=toy", *SPALL])
+    assert toy.interface.sigma_c == 5e5
+    with pytest.raises(CaseError, match="interface.mu = 0.5: only allowed when interface.law is 'rccm' or"):
+        load_case("sound-bar", ["interface.law=toy", *SPALL, "interface.mu=0.5"])
+    with pytest.raises(CaseError, match="the toy law needs it"):
+        load_case("sound-bar", ["interface.law=toy"])
+    load_case("sound-bar", ["interface.law=toy", *SPALL, "time.scheme=theta"])  # its theta flag
+    ran = dolfrag.run(toy, tmp_path / "toy", quiet=True)
+    # RCCM with the keys the toy law leaves out at their defaults (0) is the same law: the
+    # same arithmetic, so the same numbers
+    rccm = dolfrag.run(load_case("sound-bar", ["interface.law=rccm", *SPALL]), tmp_path / "rccm", quiet=True)
+    assert ran["status"] == "completed"
+    assert ran["broken_links"] > 0
+    assert ran["broken_links"] == rccm["broken_links"]
+    assert ran["energies_J"] == rccm["energies_J"]

@@ -10,7 +10,6 @@ from petsc4py import PETSc
 from conftest import mpirun
 from dolfrag import loads
 from dolfrag.case import load_case
-from dolfrag.interface import models
 from dolfrag.problem import Problem
 from dolfrag.runner.driver import run
 from dolfrag.solver.imex import Imex
@@ -67,13 +66,11 @@ def pull_histories(h, steps):
     case = load_case("sound-bar", ["mesh.size=0.006", "geometry.length=0.06", *INTACT_RCCM, "material.bulk_viscosity=false",
                                    'supports.clamped=["right"]'])
     problem = Problem.build(case, MPI.COMM_SELF)
-    domain, space, links = problem.domain, problem.space, problem.links
+    domain, space = problem.domain, problem.space
     end = space.gdim * space.boundary_dofs(domain.facet_tags, domain.boundary_tag("left"))
     pull = sin2_pull(2e6, RAMP)
-    C_N, C_T = problem.stiffness
-    rccm = models.Rccm(len(links), C_N, C_T, case.interface.adhesion_energy(C_N))
     schemes = {"imex": Imex.from_problem(problem, h=h, pressure=pull),
-               "theta": Theta.from_problem(problem, h=h, theta=0.5, model=rccm, pressure=pull)}
+               "theta": Theta.from_problem(problem, h=h, theta=0.5, pressure=pull)}
     out = {}
     for name, integ in schemes.items():
         u, v = np.zeros(steps), np.zeros(steps)
@@ -199,12 +196,12 @@ def test_theta_jacobian_with_turning_bars_is_the_derivative_of_its_residual():
     geometric, not symmetric) against central differences of the momentum residual, at a
     state with the bars turned and stretched (some yielding, some slack). Linear springs:
     the bars are the only nonlinearity."""
-    case = load_case("wall-bending-clamped", ["geometry.length=0.3", "mesh.size=0.05"])
+    case = load_case("wall-bending-clamped", ["geometry.length=0.3", "mesh.size=0.05", "interface.law=elastic",
+                                              "interface.rate_effect=", "interface.mu="])
     problem = Problem.build(case, MPI.COMM_SELF)
     space = problem.space
-    springs = models.Elastic(len(problem.links), *problem.stiffness)
     load = loads.unit_pressure_vector(space, problem.domain, case.load.boundary)
-    integ = Theta.from_problem(problem, theta=0.5, model=springs, load=load)
+    integ = Theta.from_problem(problem, theta=0.5, load=load)
     # a large rigid turn, plus a wave straining the chords by a few 1e-3
     X, angle = space.x, 0.3  # rad
     u = integ.u.x.array

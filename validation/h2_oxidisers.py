@@ -1,6 +1,6 @@
 """The gas states of stoichiometric hydrogen in air and in oxygen beside published values
 (docs/loads.md, "The oxidiser"): P_AICC, c_b, D_CJ, P_CJ, T_CJ, the reflected CJ spike and
-the Taylor plateau, computed by dolfrag/gas.py at each published value's initial state.
+the Taylor plateau, computed by dolfrag/loads/gas.py at each published value's initial state.
 
     python validation/h2_oxidisers.py
 
@@ -9,8 +9,8 @@ gas.PUBLISHED's: H2-air at 1 atm and 298 K; H2-O2 at 1 bar and 298.15 K, NASA CE
 Gordon, NASA RP-1311 part II, 1996, example 6). The reflected and Taylor ratios are the usual
 ideal-gas estimates. Each mixture's numbers come from the cache when there (gas.explosion).
 """
-from dolfrag import gas
-from dolfrag.mixture import Mixture
+from dolfrag.loads import gas
+from dolfrag.loads.mixture import Mixture
 
 # (column title, Mixture, T0 K, p0 Pa): the published values' mixtures and initial states
 MIXTURES = [("H2-air, 29.6 % H2, 298.15 K, 1 atm", Mixture(2 / 6.76), 298.15, 101325.0),

@@ -11,6 +11,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from dolfrag import concrete
+from dolfrag.interface.models import LAWS
 from dolfrag.case.rules import _check
 from dolfrag.case.schema import CaseError, _Spec, _convert, _section, _show
 from dolfrag.case.sections import _PATH_KEYS, _SECTIONS, _TOP_KEYS, Case, Material
@@ -50,9 +51,8 @@ def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 _GRADE_KEYS = {"E": "E", "nu": "nu", "rho": "rho"}  # [material] key: Concrete field
-# [interface] key: Concrete field, for the laws with that key
-_GRADE_STRENGTH = {"sigma_c": ("f_ctm", ("rccm", "rccm_decoupled", "linear_softening")),
-                   "G_c": ("G_F", ("rccm_decoupled", "linear_softening"))}
+# [interface] key: Concrete field, for the laws with that key (interface/models.LAWS)
+_GRADE_STRENGTH = {"sigma_c": "f_ctm", "G_c": "G_F"}
 
 
 def _grade_defaults(raw: dict) -> dict[str, str]:
@@ -75,11 +75,12 @@ def _grade_defaults(raw: dict) -> dict[str, str]:
     material, interface = raw.get("material"), raw.setdefault("interface", {})
     if isinstance(material, dict) and material.get("grade") in concrete.GRADES and isinstance(interface, dict):
         values = concrete.concrete(material["grade"])
-        law = interface.get("law", "elastic")
-        for key, (name, laws) in _GRADE_STRENGTH.items():
-            if law in laws and key not in interface and not (key == "sigma_c" and "w" in interface):
-                interface[key] = getattr(values, name)
-                sources[f"interface.{key}"] = f"{values.grade}: {concrete.SOURCES[name]}"
+        name = interface.get("law", "elastic")
+        law = LAWS.get(name) if isinstance(name, str) else None  # a bad value is refused with its key later
+        for key, field in _GRADE_STRENGTH.items():
+            if law and key in law.keys and key not in interface and not (key == "sigma_c" and "w" in interface):
+                interface[key] = getattr(values, field)
+                sources[f"interface.{key}"] = f"{values.grade}: {concrete.SOURCES[field]}"
     return sources
 
 

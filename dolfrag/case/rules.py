@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dolfrag import bunker, mixture
+from dolfrag import bunker
+from dolfrag.loads import mixture
 from dolfrag.interface.models import law as _law
 from dolfrag.loads.explosives import EQUIVALENCES, EQUIVALENTS, SOURCE as EXPLOSIVES_SOURCE
 from dolfrag.case.schema import CaseError, _show
@@ -14,35 +15,75 @@ from dolfrag.case.sections import BOX_BOUNDARIES, Case, Geometry, Load, Rebar
 
 def _check(case: Case) -> None:
     """Rules linking several keys or sections."""
-    load, sup, known = case.load, case.supports, case.geometry.boundaries
-    law = case.interface
-    if law.law == "rccm" and (law.sigma_c is None) == (law.w is None):
-        raise CaseError(f"interface.sigma_c = {law.sigma_c!r}, interface.w = {law.w!r}: "
-                        "rccm needs exactly one of them (Pa, J/m^2)")
-    if law.C_T is not None and law.shear_ratio is not None:
-        raise CaseError(f"interface.C_T = {law.C_T:g} Pa/m, interface.shear_ratio = {law.shear_ratio!r}: "
-                        "give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
-    if case.time.scheme == "theta" and load.signal == "charge" and case.time.dt is None:
-        raise CaseError("time.dt: missing (required when time.scheme is 'theta' and load.signal is 'charge': "
-                        "the charge's shortest positive phase is known only on the mesh), s")
-    if case.time.scheme == "theta" and not _law(law).theta:
-        raise CaseError(f"time.scheme = 'theta' with interface.law = {law.law!r}: not available yet "
-                        "(the rigid laws run with 'imex')")
-    if law.law in ("linear_softening", "rccm_decoupled") and law.sigma_c is None:
-        raise CaseError(f"interface.sigma_c: missing (required when interface.law is "
-                        f"{law.law!r}), Pa")
-    if law.law == "rccm_decoupled":
-        C_N = law.stiffness(case.material.E, case.mesh.size)[0]
-        if C_N <= law.sigma_c**2 / (2 * law.G_c):
-            raise CaseError(f"interface.G_c = {law.G_c!r}: rccm_decoupled needs C_N > sigma_c^2 / "
-                            f"(2 G_c), i.e. G_c > {law.sigma_c**2 / (2 * C_N):.3g} J/m^2 with C_N = "
-                            f"{C_N:.3g} Pa/m (or raise interface.C_N / stiffness_ratio)")
+    _check_interface(case)
+    if case.time.scheme == "theta":
+        _check_theta(case)
+    load = case.load
     if load.signal == "triangular" and load.duration < load.rise:
         raise CaseError(f"load.duration = {load.duration!r}: "
                         f"must be >= load.rise = {load.rise!r} (s)")
     _check_load(load, case.geometry)
     if load.kind == "stretch":
         _check_stretch(case)
+    _check_boundaries(case)
+    if case.geometry.kind == "bunker":
+        _check_bunker(case.geometry)
+    _check_rebar(case.rebar, case.geometry)
+    _check_groups(case)
+    late = [t for t in case.output.fragments_at if t > case.time.end]
+    if late:
+        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
+                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
+    _check_layers(case)
+    if load.boundary in case.supports.clamped:
+        raise CaseError(f"supports.clamped = {_show(list(case.supports.clamped))}: {load.boundary!r} is the "
+                        "load.boundary (the loaded boundary may not be clamped)")
+
+
+def _check_interface(case: Case) -> None:
+    """The interface law's own rules (its entry in interface/models.LAWS, with the normal
+    stiffness of the stiffness rule) and the stiffness keys."""
+    interface = case.interface
+    problem = _law(interface).rules(interface, interface.stiffness(case.material.E, case.mesh.size)[0])
+    if problem:
+        raise CaseError(problem)
+    if interface.C_T is not None and interface.shear_ratio is not None:
+        raise CaseError(f"interface.C_T = {interface.C_T:g} Pa/m, interface.shear_ratio = "
+                        f"{interface.shear_ratio!r}: give one of them (C_T in Pa/m, or shear_ratio = C_T / C_N)")
+
+
+def _check_theta(case: Case) -> None:
+    """What the theta scheme needs, and the runs it does not finish: a rectangle pushed
+    across its thickness (a pressure on its bottom or top, normal to y) between supports,
+    a wall section in bending, with links that break. Once such a section cracks through,
+    its pieces hang on the supports and the bars in contact with friction, and theta's
+    global semi-smooth Newton stops on a step that no cut resolves; which step depends on
+    the path (measured with RCCM at 20 mm: wall-bending-simple stops at 25.9 ms on 1 rank,
+    with sub-steps down to h/16 and h/256, 20 times the iterations or the contact
+    regularisation escalated in every step; wall-bending-clamped completes on 1 rank and
+    stops at 33.8 ms on 2; without bars both stop at 91 ms; docs/wall.md). The star-local
+    imex steps through them."""
+    law, interface, load, sup = _law(case.interface), case.interface, case.load, case.supports
+    if load.signal == "charge" and case.time.dt is None:
+        raise CaseError("time.dt: missing (required when time.scheme is 'theta' and load.signal is 'charge': "
+                        "the charge's shortest positive phase is known only on the mesh), s")
+    if not law.theta:
+        raise CaseError(f"time.scheme = 'theta' with interface.law = {interface.law!r}: not available yet "
+                        "(the rigid laws run with 'imex')")
+    bending = (case.geometry.kind == "rectangle" and load.boundary in ("bottom", "top")
+               and bool(sup.clamped or sup.simple))
+    if law.breakable and bending:
+        raise CaseError(f"time.scheme = 'theta' with interface.law = {interface.law!r} on load.boundary = "
+                        f"{load.boundary!r} between supports: not available (a wall section in bending that "
+                        "cracks through stops theta's Newton on a step no cut resolves: wall-bending-simple at "
+                        "25.9 ms, wall-bending-clamped at 33.8 ms on 2 ranks; docs/wall.md); "
+                        "use time.scheme = 'imex'")
+
+
+def _check_boundaries(case: Case) -> None:
+    """Every boundary a key names exists (on a geometry that knows its boundaries), and is in
+    one support list at most."""
+    load, sup, known = case.load, case.supports, case.geometry.boundaries
     named = {**({"load.boundary": load.boundary} if load.kind == "pressure" else {}),
              "supports.rollers": list(sup.rollers),
              "supports.clamped": list(sup.clamped), "supports.simple": list(sup.simple),
@@ -59,31 +100,25 @@ def _check(case: Case) -> None:
             if kind < other and both:
                 raise CaseError(f"supports.{kind} = {_show(list(names))}: {both[0]!r} is also in "
                                 f"supports.{other} (a boundary may be in one list only)")
-    if case.geometry.kind == "bunker":
-        _check_bunker(case.geometry)
-    _check_rebar(case.rebar, case.geometry)
-    _check_groups(case)
-    late = [t for t in case.output.fragments_at if t > case.time.end]
-    if late:
-        raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
-                        f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
-    bars = case.rebar
-    if bars.faces:
-        if case.geometry.kind == "file" and case.geometry.tdim == 2:
-            raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box, bunker or "
-                            "a 3D mesh file (geometry.dim = 3)")
-        for key in ("cover", "diameter", "spacing"):
-            if getattr(bars, key) is None:
-                raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
-        geometry = case.geometry
-        thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else np.inf if geometry.kind == "file"
-                    else min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
-        if not bars.cover < thinnest / 2:
-            raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
-                            "smallest extent), or the layers cross")
-    if load.boundary in sup.clamped:
-        raise CaseError(f"supports.clamped = {_show(list(sup.clamped))}: {load.boundary!r} is the "
-                        "load.boundary (the loaded boundary may not be clamped)")
+
+
+def _check_layers(case: Case) -> None:
+    """Bar layers have a body to lie in: a geometry that has faces to lay them along, their
+    sizes given, and a cover (m) under half the body's smallest extent."""
+    bars, geometry = case.rebar, case.geometry
+    if not bars.faces:
+        return
+    if geometry.kind == "file" and geometry.tdim == 2:
+        raise CaseError(f"rebar.faces = {_show(list(bars.faces))}: layers need a rectangle, box, bunker or "
+                        "a 3D mesh file (geometry.dim = 3)")
+    for key in ("cover", "diameter", "spacing"):
+        if getattr(bars, key) is None:
+            raise CaseError(f"rebar.{key}: missing (required when rebar.faces is given), m")
+    thinnest = (geometry.scale * geometry.wall if geometry.kind == "bunker" else np.inf if geometry.kind == "file"
+                else min(x for x in (geometry.length, geometry.width, geometry.thickness) if x))
+    if not bars.cover < thinnest / 2:
+        raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
+                        "smallest extent), or the layers cross")
 
 
 BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)
@@ -238,7 +273,7 @@ def _check_charge(load: Load, geometry: Geometry) -> None:
 
 
 def _check_h2_air(load: Load) -> None:
-    """The mixture of an h2-air load within its limits (mixture.py), and the keys that
+    """The mixture of an h2-air load within its limits (loads/mixture.py), and the keys that
     belong to one regime only."""
     _check_mixture(load)
     only = {"deflagration": ("rise",), "detonation": ("decay", "damping")}
@@ -255,7 +290,7 @@ def _check_h2_air(load: Load) -> None:
 
 def _check_mixture(load: Load) -> None:
     """h2_fraction within its oxidiser's limits; a diluted oxygen mixture no more diluted
-    than air and of an equivalence ratio within air's limits (mixture.py's docstring)."""
+    than air and of an equivalence ratio within air's limits (loads/mixture.py's docstring)."""
     low, high = mixture.H2_LIMITS[load.oxidizer]
     if not low <= load.h2_fraction <= high:
         raise CaseError(f"load.h2_fraction = {load.h2_fraction!r}: with load.oxidizer = {load.oxidizer!r} must be "

@@ -7,7 +7,7 @@ import math
 import operator
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 
 
@@ -36,7 +36,9 @@ class _Spec:
     bounds: str = ""          # e.g. "> 0" or ">= 0, < 0.5"
     unit: str = ""
     choices: tuple = ()
-    when: tuple = ()          # (discriminator field, values...): the key exists only then
+    # (discriminator field, values...): the key exists only then; or a function returning
+    # that tuple when a case is read (a registry's answer, which may grow after import)
+    when: tuple | Callable[[], tuple] = ()
     optional_for: tuple = ()  # discriminator values for which the key may be absent (None)
     suffixes: tuple = ()      # allowed file suffixes for kind "path"
     count: int = 0            # how many numbers kind "sizes" holds
@@ -56,8 +58,13 @@ class _Spec:
         pairs = (part.split() for part in self.bounds.split(",") if part)
         return all(_OPS[op](number, float(limit)) for op, limit in pairs)
 
+    def gate(self) -> tuple:
+        """``when`` as a tuple (discriminator field, values...), () for a key always allowed."""
+        return self.when() if callable(self.when) else self.when
+
     def condition(self, prefix: str) -> str:
-        return f"{prefix}.{self.when[0]} is " + " or ".join(map(repr, self.when[1:]))
+        discriminator, *values = self.gate()
+        return f"{prefix}.{discriminator} is " + " or ".join(map(repr, values))
 
 
 def _f(kind: str, default: Any = _REQ, bounds: str = "", unit: str = "", **kw) -> Any:
@@ -128,17 +135,18 @@ def _section(cls: type, raw: Any, prefix: str, base: Path) -> Any:
     out: dict[str, Any] = {}
     for name, spec in specs.items():
         key = f"{prefix}.{name}"
-        if spec.when and out[spec.when[0]] not in spec.when[1:]:
+        when = spec.gate()
+        if when and out[when[0]] not in when[1:]:
             if name in raw:
                 raise CaseError(f"{key} = {_show(raw[name])}: only allowed when "
                                 f"{spec.condition(prefix)} (--set {key}= removes it)")
             out[name] = None
         elif name in raw:
             out[name] = _convert(key, raw[name], spec, base)
-        elif spec.optional_for and out[spec.when[0]] in spec.optional_for:
+        elif spec.optional_for and out[when[0]] in spec.optional_for:
             out[name] = None
         elif spec.default is _REQ:
-            needed = f" (required when {spec.condition(prefix)})" if spec.when else ""
+            needed = f" (required when {spec.condition(prefix)})" if when else ""
             raise CaseError(f"missing key {key}{needed}: {spec.describe()}")
         else:
             out[name] = spec.default

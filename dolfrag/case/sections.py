@@ -3,13 +3,15 @@ the names each key may take."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, is_dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dolfrag import bunker, concrete, mixture
-from dolfrag.interface.models import LAWS as _LAW_REGISTRY
+from dolfrag import bunker, concrete
+from dolfrag.interface.models import LAWS as _LAWS, owning
+from dolfrag.loads import mixture
 from dolfrag.loads.charge import BURSTS
 from dolfrag.loads.explosives import EQUIVALENCES, EXPLOSIVES
 from dolfrag.case.schema import _f
@@ -23,7 +25,6 @@ DILUENTS = tuple(mixture.DILUENTS)    # of an oxygen mixture
 LOAD_KINDS = ("pressure", "stretch")
 SCHEMES = ("imex", "theta")
 RATE_EFFECTS = ("none", "fib2010")
-LAWS = tuple(_LAW_REGISTRY)
 RECTANGLE_BOUNDARIES = ("left", "right", "bottom", "top")
 BOX_BOUNDARIES = RECTANGLE_BOUNDARIES + ("front", "back")
 BUNKER_BOUNDARIES = bunker.BOUNDARIES
@@ -44,9 +45,6 @@ _REVERBERATING = _DETONATION + ("h2-air",)
 _OXYGEN = ("oxidizer", "oxygen")
 _CHARGE = ("signal", "charge")
 _GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.h2_air_shape)
-_RCCM = ("law", "rccm")
-_STRENGTH = ("law", "rccm", "rccm_decoupled", "linear_softening")
-_FRICTIONAL = ("law", "rccm", "rccm_decoupled", "threshold", "linear_softening")
 
 
 @dataclass(frozen=True)
@@ -110,7 +108,8 @@ class Interface:
 
     When C_N / C_T are not given, C = stiffness_ratio * E / mesh.size (the reference paper's C = 10 E / h).
     """
-    law: str = _f("str", "elastic", choices=LAWS)                   # one of LAWS
+    # one of interface/models.LAWS (a live view: a law added to the registry is a choice)
+    law: str = _f("str", "elastic", choices=_LAWS.keys())
     C_N: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # normal [Pa/m], > 0
     C_T: float | None = _f("float", None, bounds="> 0", unit="Pa/m")   # tangential [Pa/m], > 0
     stiffness_ratio: float = _f("float", 10.0, bounds="> 0")        # [-], > 0
@@ -120,22 +119,22 @@ class Interface:
     # rccm: give sigma_c (peak tensile traction, then w = sigma_c^2 / C_N) or w, not both;
     # rccm_decoupled: sigma_c and G_c independent of C_N; linear_softening: sigma_c (rigid up
     # to it) and G_c
-    sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=_STRENGTH)
-    w: float | None = _f("float", None, bounds="> 0", unit="J/m^2", when=_RCCM)
-    b: float | None = _f("float", 0.0, bounds=">= 0", unit="J s/m^2", when=_RCCM)  # 0: rate-independent
-    G_c: float | None = _f("float", bounds="> 0", unit="J/m^2", when=("law", "rccm_decoupled", "linear_softening"))
+    sigma_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=partial(owning, "sigma_c"))
+    w: float | None = _f("float", None, bounds="> 0", unit="J/m^2", when=partial(owning, "w"))
+    b: float | None = _f("float", 0.0, bounds=">= 0", unit="J s/m^2", when=partial(owning, "b"))  # 0: rate-independent
+    G_c: float | None = _f("float", bounds="> 0", unit="J/m^2", when=partial(owning, "G_c"))
     # threshold: rigid, tension up to R_c while the gap stays below W_eth
-    R_c: float | None = _f("float", bounds="> 0", unit="Pa", when=("law", "threshold"))
-    W_eth: float | None = _f("float", bounds="> 0", unit="m", when=("law", "threshold"))
+    R_c: float | None = _f("float", bounds="> 0", unit="Pa", when=partial(owning, "R_c"))
+    W_eth: float | None = _f("float", bounds="> 0", unit="m", when=partial(owning, "W_eth"))
     # Coulomb friction; rccm: mu (1 - beta) acts; threshold, linear_softening: on the cone
     # shifted by the cohesion while the link holds
-    mu: float | None = _f("float", 0.0, bounds=">= 0", when=_FRICTIONAL)
+    mu: float | None = _f("float", 0.0, bounds=">= 0", when=partial(owning, "mu"))
     # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
     # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the reference paper's law)
-    mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=("law", "rccm", "rccm_decoupled"))
+    mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=partial(owning, "mu_i"))
     # strength at the strain rate of the bulk beside each link (interface/rate.py):
     # "fib2010" sigma_c x the fib Model Code 2010 tensile factor, "none" sigma_c alone
-    rate_effect: str | None = _f("str", "none", choices=RATE_EFFECTS, when=("law", "linear_softening"))
+    rate_effect: str | None = _f("str", "none", choices=RATE_EFFECTS, when=partial(owning, "rate_effect"))
 
     def adhesion_energy(self, C_N: float) -> float:
         """RCCM adhesion energy w (J/m^2): given, or sigma_c^2 / C_N (docs/method.md)."""
@@ -169,7 +168,7 @@ class Load:
     reverberations (frequency, amplitude relative to plateau, damping time) and an optional
     local peak, all times (1 - t/duration).
     h2-air: a hydrogen explosion (docs/loads.md), the deflagration or detonation shape
-    (`regime`) with its levels computed from the mixture (dolfrag/gas.py: h2_fraction in air
+    (`regime`) with its levels computed from the mixture (dolfrag/loads/gas.py: h2_fraction in air
     or in oxygen, `oxidizer`, an oxygen mixture's optional `diluent`, T0, p0),
     the overpressures reduced by `heat_loss`, the acoustic frequency c_b / (2 room_length);
     `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`

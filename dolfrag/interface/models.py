@@ -4,7 +4,8 @@ The laws themselves (interface/laws.py) are pure functions; a model holds what a
 needs around one: parameters from the case, the state array (one entry per owned link),
 the friction coefficient, the energies, and the rule for "broken".
 """
-from typing import NamedTuple
+from dataclasses import dataclass
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -37,7 +38,6 @@ class Cohesion(NamedTuple):
 class Elastic:
     """Linear springs C_N, C_T (Pa/m) in tension and compression; no state, never broken."""
 
-    can_break = False
     STATE = ()  # what a checkpoint keeps
 
     def __init__(self, n_links, C_N, C_T):
@@ -104,7 +104,6 @@ class Rccm(_Model):
     phenomena of concrete structures under stuffy explosion*).
     """
 
-    can_break = True
     STATE = ("beta", "released")  # what a checkpoint keeps
 
     def __init__(self, n_links, C_N, C_T, w, b=0.0, mu=0.0, h=None, mu_i=0.0):
@@ -261,7 +260,6 @@ class _Rigid(_Model):
     cohesive part of the reactions did on each link (``absorb``). That work is the energy
     stored in a rigid link, released when the link opens or breaks."""
 
-    can_break = True
     C_N = C_T = None  # no springs while rigid
 
     def __init__(self, n_links, mu):
@@ -466,21 +464,60 @@ class LinearSoftening(_Rigid):
         return np.minimum(self.delta_max / self.delta_c(), 1.0)
 
 
-class Law(NamedTuple):
-    """One interface law of the case's ``interface.law``: how to build its model, and what
-    the rest of the code may ask of it.
+def _no_rules(interface, C_N):
+    """A law whose keys need no rule between them."""
+    return None
+
+
+def _rccm_rules(interface, C_N):
+    """RCCM's peak: sigma_c (then w = sigma_c^2 / C_N) or w, exactly one."""
+    if (interface.sigma_c is None) == (interface.w is None):
+        return (f"interface.sigma_c = {interface.sigma_c!r}, interface.w = {interface.w!r}: "
+                "rccm needs exactly one of them (Pa, J/m^2)")
+    return None
+
+
+def _strength_rule(interface, C_N):
+    """A law that takes its strength sigma_c (Pa) as given needs it."""
+    if interface.sigma_c is None:
+        return f"interface.sigma_c: missing (required when interface.law is {interface.law!r}), Pa"
+    return None
+
+
+def _decoupled_rules(interface, C_N):
+    """rccm_decoupled's sigma_c, and springs C_N (Pa/m) stiff enough that the elastic energy at
+    the peak, sigma_c^2 / (2 C_N), stays below G_c (J/m^2): the softening branch needs the rest."""
+    missing = _strength_rule(interface, C_N)
+    if missing or C_N > interface.sigma_c**2 / (2 * interface.G_c):
+        return missing
+    return (f"interface.G_c = {interface.G_c!r}: rccm_decoupled needs C_N > sigma_c^2 / "
+            f"(2 G_c), i.e. G_c > {interface.sigma_c**2 / (2 * C_N):.3g} J/m^2 with C_N = "
+            f"{C_N:.3g} Pa/m (or raise interface.C_N / stiffness_ratio)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Law:
+    """One interface law of the case's ``interface.law``: how to build its model, the
+    [interface] keys it reads, the rules between them, and what the rest of the code may
+    ask of it. Adding a law is adding its entry to LAWS.
 
     build(interface, n_links, C_N, C_T, h, k_step): the model (interface: case.Interface;
     C_N, C_T Pa/m from the stiffness rule; h s the time step; k_step Pa/m per link, the
-    step's own stiffness, solver/semismooth.step_stiffness). breakable: links can break;
-    rigid: links are constraints until they open (no springs, C_N and C_T unused); springs:
-    linear springs everywhere, stepped by star blocks inverted once (imex cannot prescribe
-    velocities through them); theta: available with the theta scheme.
+    step's own stiffness, solver/semismooth.step_stiffness). keys: the law's own
+    [interface] keys (beyond law and the stiffness keys every law has), allowed only with
+    it. rules(interface, C_N): what is wrong with the keys as given (one line naming them),
+    or None; C_N (Pa/m) the normal stiffness of the stiffness rule. Flags: breakable: links
+    can break; rigid: links are constraints until they open (no springs, C_N and C_T
+    unused); springs: linear springs everywhere, no contact, stepped by star blocks
+    inverted once (imex cannot prescribe velocities through them); theta: available with
+    the theta scheme.
     """
-    build: object
+    build: Callable
+    keys: tuple = ()
+    rules: Callable = _no_rules
     breakable: bool
-    rigid: bool
-    springs: bool
+    rigid: bool = False
+    springs: bool = False
     theta: bool
 
     def tensile_strength(self, interface, C_N):
@@ -496,15 +533,26 @@ class Law(NamedTuple):
 
 
 LAWS = {
-    "elastic": Law(lambda i, n, C_N, C_T, h, k: Elastic(n, C_N, C_T), False, False, True, True),
-    "rccm": Law(lambda i, n, C_N, C_T, h, k: Rccm(n, C_N, C_T, i.adhesion_energy(C_N), i.b, i.mu, h, i.mu_i),
-                True, False, False, True),
-    "rccm_decoupled": Law(lambda i, n, C_N, C_T, h, k: RccmDecoupled(n, C_N, C_T, i.sigma_c, i.G_c, i.mu, i.mu_i),
-                          True, False, False, True),
-    "threshold": Law(lambda i, n, C_N, C_T, h, k: Threshold(n, i.R_c, i.W_eth, i.mu), True, True, False, False),
-    "linear_softening": Law(lambda i, n, C_N, C_T, h, k: LinearSoftening(n, i.sigma_c, i.G_c, i.mu, k_open=k),
-                            True, True, False, False),
+    "elastic": Law(build=lambda i, n, C_N, C_T, h, k: Elastic(n, C_N, C_T),
+                   breakable=False, springs=True, theta=True),
+    "rccm": Law(build=lambda i, n, C_N, C_T, h, k: Rccm(n, C_N, C_T, i.adhesion_energy(C_N), i.b, i.mu, h, i.mu_i),
+                keys=("sigma_c", "w", "b", "mu", "mu_i"), rules=_rccm_rules, breakable=True, theta=True),
+    "rccm_decoupled": Law(build=lambda i, n, C_N, C_T, h, k: RccmDecoupled(n, C_N, C_T, i.sigma_c, i.G_c, i.mu,
+                                                                           i.mu_i),
+                          keys=("sigma_c", "G_c", "mu", "mu_i"), rules=_decoupled_rules, breakable=True, theta=True),
+    "threshold": Law(build=lambda i, n, C_N, C_T, h, k: Threshold(n, i.R_c, i.W_eth, i.mu),
+                     keys=("R_c", "W_eth", "mu"), breakable=True, rigid=True, theta=False),
+    "linear_softening": Law(build=lambda i, n, C_N, C_T, h, k: LinearSoftening(n, i.sigma_c, i.G_c, i.mu, k_open=k),
+                            keys=("sigma_c", "G_c", "mu", "rate_effect"), rules=_strength_rule, breakable=True,
+                            rigid=True, theta=False),
 }
+
+
+def owning(key):
+    """("law", names...): the `when` condition of the [interface] ``key``, the laws of LAWS
+    whose keys hold it, in LAWS' order; asked when a case is read, so that a law added to
+    LAWS brings its keys."""
+    return ("law", *(name for name, entry in LAWS.items() if key in entry.keys))
 
 
 def law(interface):

@@ -12,7 +12,7 @@ fits; charge_load.py: on the mesh), so the functions here that take one case.Loa
 signal refuse it.
 
 An "h2-air" load is the deflagration or detonation shape with its levels computed from the
-gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, dolfrag/gas.py): the functions
+gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, gas.py): the functions
 here taking a case.Load accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
 called collectively first, computes them on rank 0 for every rank.
 """
@@ -23,8 +23,9 @@ import numpy as np
 import ufl
 from scipy.optimize import brentq
 
-from dolfrag import compat, gas
-from dolfrag.mixture import Mixture
+from dolfrag import compat
+from dolfrag.loads import gas
+from dolfrag.loads.mixture import Mixture
 
 # h2-air defaults for the keys a case leaves out (docs/loads.md, "Hydrogen-air explosion"):
 # the oscillation's amplitude (-), relative to the mean pressure (deflagration) or to the

@@ -14,7 +14,7 @@ class BreakTimes:
 
     def observe(self, step):
         integ = self.ctx.integ
-        if not integ.model.can_break:
+        if not self.ctx.problem.law.breakable:
             return
         self.break_time[integ.model.broken() & np.isnan(self.break_time)] = integ.t
         integ.timer.lap("diagnostics")

@@ -28,7 +28,7 @@ from dolfrag.solver.imex import Imex
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
 from dolfrag.solver.theta import Theta
-from dolfrag.stretch import Stretch
+from dolfrag.loads.stretch import Stretch
 
 REPORT_ERRORS = "report_errors.txt"  # the tracebacks of the parts of a run's end that failed
 
@@ -62,26 +62,11 @@ def run(case, out, quiet=False, comm=None, resume=False):
     Returns the summary dict; its "status" is "interrupted" after SIGINT or SIGTERM."""
     comm = comm or MPI.COMM_WORLD
     out = Path(out)
-    if resume:
-        case = checkpoint.case_of(out)
-    elif not isinstance(case, Case):
-        case = load_case(case)
-    loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
-    guards.report(case, comm)
-    wall_start = perf_counter()
-    saved = checkpoint.load(out, comm) if resume else None
-    problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
-    guards.warn(guards.toughness_warning(case), comm)  # once the mesh is known good: after bad input
-    integ, stretch = prepare(problem)
-    if saved is not None and saved["layout"] != _layout(problem):
-        raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")
+    ctx, saved, wall_start = _start(case, out, comm, resume)
+    case, problem, integ = ctx.case, ctx.problem, ctx.integ
     first_step = saved["step"] if saved else 0
-    ctx = RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan))
     history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
-    stateful = {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
-                "star_layout": getattr(integ.interface, "layout", None), "stretch": stretch,
-                "viscosity": getattr(integ, "viscosity", None), "fields_file": output.vtk,
-                **{f"{type(o).__name__}{i}": o for i, o in enumerate(rows + observers)}}
+    stateful = _stateful(integ, ctx.stretch, output, rows + observers)
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:
         for name, obj in stateful.items():
@@ -130,6 +115,38 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary.update(signal=stop.signal.name, time_reached_s=integ.t, resume=resume_command(out, comm, "report"))
         output.summary(summary)
     return summary
+
+
+def _start(case, out, comm, resume):
+    """(ctx, saved, wall_start): the RunContext of ``case`` (a Case, a case name or file; the
+    checkpoint's case in ``out`` if ``resume``) with its problem built and its integrator
+    started, the checkpoint's data (None unless resuming) and the perf_counter() time (s) at
+    which the run's wall time starts, once the load and the limits are known. Collective;
+    raises CaseError on bad input or a checkpoint of another partition."""
+    if resume:
+        case = checkpoint.case_of(out)
+    elif not isinstance(case, Case):
+        case = load_case(case)
+    loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
+    guards.report(case, comm)
+    wall_start = perf_counter()
+    saved = checkpoint.load(out, comm) if resume else None
+    problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
+    guards.warn(guards.toughness_warning(case), comm)  # once the mesh is known good: after bad input
+    integ, stretch = prepare(problem)
+    if saved is not None and saved["layout"] != _layout(problem):
+        raise CaseError(f"--resume {out}: this rank's mesh partition differs from the checkpoint's")
+    return RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan)), saved, wall_start
+
+
+def _stateful(integ, stretch, output, providers):
+    """{checkpoint key: object} of every object whose state a checkpoint keeps: the
+    integrator's parts, the stretch, the fields file and the history's and observers'
+    ``providers`` (in their order, which a resumed run shares)."""
+    return {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
+            "star_layout": getattr(integ.interface, "layout", None), "stretch": stretch,
+            "viscosity": getattr(integ, "viscosity", None), "fields_file": output.vtk,
+            **{f"{type(o).__name__}{i}": o for i, o in enumerate(providers)}}
 
 
 def _guard(integ, stop, stateful):

@@ -93,7 +93,8 @@ class Theta:
     per facet); h: time step (s), any
     size (the scheme is unconditionally stable); theta in [1/2, 1]; constrained: flat local
     dof components held at zero (supports.constrained_components, or a boolean mask such as
-    Stars.constrained); options: solver/options.NewtonOptions. Collective.
+    Stars.constrained); options: solver/options.NewtonOptions; contact: the law has contact
+    and friction (not linear springs everywhere: interface/models.Law.springs). Collective.
     """
 
     # what a checkpoint keeps (a resumed run refactorises at its first step)
@@ -104,7 +105,7 @@ class Theta:
     interrupt = None
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(), rebars=None,
-                 options=NewtonOptions()):
+                 options=NewtonOptions(), *, contact):
         if not 0.5 <= theta <= 1.0:
             raise ValueError(f"theta = {theta!r}: must be in [1/2, 1]")
         if not h > 0:
@@ -119,7 +120,7 @@ class Theta:
         self.u.name, self.v.name = "displacement", "velocity"
         load = nodal_load(load, pressure, slice(0, space.n_owned_dofs * space.gdim))
         res = self.residual = ThetaResidual(space, bulk, jump, model, load, theta, constrained, rebars, self.u,
-                                            self.v, options.rtol, options.regularisation)
+                                            self.v, options.rtol, options.regularisation, contact)
         self.owned, self.m, self.contact = res.owned, res.m, res.contact
         self.t, self.n = 0.0, 0
         self.work = self.numerical = 0.0  # this rank's shares, J
@@ -134,16 +135,16 @@ class Theta:
         self._assembled_h = self._factored_status = None  # the factorisation in hand
 
     @classmethod
-    def from_problem(cls, problem, h=None, theta=None, model=None, load=None, pressure=None, rebars=True,
+    def from_problem(cls, problem, h=None, theta=None, load=None, pressure=None, rebars=True,
                      options=NewtonOptions()):
         """The integrator of ``problem`` (problem.Problem): steps of h (s) and theta (default
-        the case's), a fresh interface model unless ``model`` is given, the problem's load
-        vector, pressure and bars (rebars=False: none), its supports held."""
+        the case's), a fresh model of the case's interface law, the problem's load vector,
+        pressure and bars (rebars=False: none), its supports held."""
         theta = problem.case.time.theta if theta is None else theta
-        return cls(problem.space, problem.bulk, problem.jump, model or problem.interface_model(h),
+        return cls(problem.space, problem.bulk, problem.jump, problem.interface_model(h),
                    problem.load if load is None else load, pressure or problem.pressure, h or problem.h,
                    0.5 if theta is None else theta, problem.stars.constrained,
-                   rebars=problem.rebars if rebars else None, options=options)
+                   rebars=problem.rebars if rebars else None, options=options, contact=not problem.law.springs)
 
     @property
     def energy_time(self):

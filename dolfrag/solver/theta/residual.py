@@ -67,9 +67,12 @@ class ThetaResidual:
     ``constrained`` (flat local indices or a boolean mask), the bars (rebar/cables.Rebars or None)
     and the state u, v (Functions: u_n, v_n, owned by the integrator); rtol: the tolerance
     on the scaled residual; regularisation: on the reaction diagonal of sticking links, whose
-    constraints around a vertex are redundant. Collective."""
+    constraints around a vertex are redundant; contact: the links have contact and
+    friction, their reactions unknowns of the step (every law but linear springs:
+    interface/models.Law.springs). Collective."""
 
-    def __init__(self, space, bulk, jump, model, load, theta, constrained, rebars, u, v, rtol, regularisation):
+    def __init__(self, space, bulk, jump, model, load, theta, constrained, rebars, u, v, rtol, regularisation,
+                 contact):
         self.space, self.bulk, self.jump, self.model, self.rebars = space, bulk, jump, model, rebars
         self.theta, self.u, self.v, self.rtol, self.regularisation = theta, u, v, rtol, regularisation
         self.comm = space.mesh.comm
@@ -79,7 +82,7 @@ class ThetaResidual:
         self.owned = slice(0, n_x)
         self.m = bulk.m.x.array
         self.load = load
-        self.contact = not isinstance(model, models.Elastic)
+        self.contact = contact
         links = jump.links
         self.frame = links.frames()  # (n, d, d)
         self.w = links.weight

@@ -44,7 +44,7 @@ import cantera as ct
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from dolfrag.mixture import composition
+from dolfrag.loads.mixture import composition
 
 MECHANISM = "gri30.yaml"
 # the numbers of `explosion` change only with this, the mixture, Cantera and the mechanism:
