@@ -66,6 +66,7 @@ class NewtonReport:
     cutting, the largest final scaled residual of its sub-steps, and the energy the contact
     reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged
     and stalled stay 0: a step that does not converge is cut, then raises ConvergenceError."""
+    layout = failed = None  # one global system: no star layout, no star left unsolved
     max_iterations: int
     rtol: float
     iterations: int = 0
@@ -103,6 +104,8 @@ class Theta:
     # Newton iteration (a theta step may take minutes, more than a launcher waits after its
     # SIGTERM); True abandons the step with StepInterrupted
     interrupt = None
+    abandonable = True
+    viscosity = None  # the bulk viscosity is explicit: imex's alone
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(), rebars=None,
                  options=NewtonOptions(), *, contact):
