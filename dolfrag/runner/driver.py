@@ -70,8 +70,9 @@ def run(case, out, quiet=False, comm=None, resume=False):
     stateful = _stateful(integ, ctx.stretch, output, rows + observers)
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:
+        states = _by_name(saved["objects"], rows + observers)
         for name, obj in stateful.items():
-            checkpoint.restore_object(obj, saved["objects"][name])
+            checkpoint.restore_object(obj, states[name])
         before = saved["wall_time_s"]
 
     def save(k):
@@ -143,11 +144,24 @@ def _start(case, out, comm, resume):
 def _stateful(integ, stretch, output, providers):
     """{checkpoint key: object} of every object whose state a checkpoint keeps: the
     integrator's parts, the stretch, the fields file and the history's and observers'
-    ``providers`` (in their order, which a resumed run shares)."""
+    ``providers``, each under its class name."""
     return {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
             "star_layout": integ.interface.layout, "stretch": stretch,
             "viscosity": integ.viscosity, "fields_file": output.vtk,
-            **{f"{type(o).__name__}{i}": o for i, o in enumerate(providers)}}
+            **{type(o).__name__: o for o in providers}}
+
+
+def _by_name(states, providers):
+    """A checkpoint's {key: state} with each of ``providers`` under its class name. A
+    checkpoint written before the observers were named keys them by class name and
+    position among the providers ("History0"), an order a resumed run shares: those keys
+    are renamed, so that such a run still resumes."""
+    states = dict(states)
+    for i, provider in enumerate(providers):
+        name = type(provider).__name__
+        if f"{name}{i}" in states:
+            states[name] = states.pop(f"{name}{i}")
+    return states
 
 
 def _guard(integ, stop, stateful):
