@@ -18,7 +18,6 @@ from dolfrag.interface.jumps import Jump
 from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
-from dolfrag.solver.theta import accuracy_time_step
 from dolfrag.loads.stretch import end_components
 
 
@@ -153,7 +152,7 @@ def _time_step(case, dt_crit):
     the bulk's stable step; either is shortened to end exactly at time.end."""
     time = case.time
     if time.scheme == "theta":
-        h = time.dt or accuracy_time_step(case.load, time.end)
+        h = time.dt or loads.accuracy_time_step(case.load, time.end)
     else:
         h = time.cfl * dt_crit
     n_steps = math.ceil(time.end / h)

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import compat, loads
+from dolfrag import compat
 from dolfrag.interface.contact import link_blocks
 from dolfrag.solver import semismooth
 from dolfrag.solver.energy import global_energies, reaction_work
@@ -75,14 +75,6 @@ class NewtonReport:
     unconverged: int = 0
     stalled: int = 0
     contact_dissipated: float = 0.0
-
-
-def accuracy_time_step(load, end, per_feature=20):
-    """A step (s) resolving the load signal (case.Load): its shortest feature
-    (loads.shortest_feature: a rise, a decay, a table interval, an oscillation's half period)
-    over per_feature, at most end / per_feature. A priori only: it knows nothing of the
-    structure's periods or of crack events."""
-    return min(loads.shortest_feature(load), end) / per_feature
 
 
 class Theta:
