@@ -21,12 +21,13 @@ class Bulk:
     """K: assembled PETSc matrix (owned rows). K_cells: the same operator as a scipy
     block-sparse matrix of the owned cells' blocks on the owned dof components, applied
     in the time loop (2.3x faster than the AIJ product, measured). m: Function, lumped
-    mass of every dof component (kg), owned and ghost values set. dt_crit: stable
-    central-difference step of the bulk alone (s), the same on every rank."""
+    mass of every dof component (kg), owned and ghost values set. dt_bulk: stable
+    central-difference step of the bulk alone (s), the same on every rank (the run's,
+    with bars and viscosity, is problem.Problem.dt_crit)."""
     K: object
     K_cells: sp.bsr_matrix
     m: object
-    dt_crit: float
+    dt_bulk: float
 
 
 def material_fields(space, domain, default, groups):

@@ -76,7 +76,7 @@ def steps_estimate(case):
     the load's accuracy step."""
     time = case.time
     if time.scheme == "theta":
-        from dolfrag.solver.theta import accuracy_time_step
+        from dolfrag.loads import accuracy_time_step
         return time.end / (time.dt or accuracy_time_step(case.load, time.end))
     factor = viscosity.step_factor() if viscosity.applies(case) else 1.0  # it lowers the stable step
     return time.end / (time.cfl * factor * stable_step_estimate(case))

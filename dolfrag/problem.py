@@ -18,18 +18,19 @@ from dolfrag.interface.jumps import Jump
 from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
-from dolfrag.solver.theta import accuracy_time_step
 from dolfrag.loads.stretch import end_components
 
 
 @dataclass(frozen=True)
 class Problem:
     """case: case.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
-    mass m, stiffness K, dt_crit s); rebars: cables.Rebars or None; links, jump, stars:
+    mass m, stiffness K, the bulk's own stable step); rebars: cables.Rebars or None; links, jump, stars:
     interface/; held: flat local components held by the supports (a stretch's ends
     included); load: Function of nodal forces per pascal, or for a charge its
     loads.charge_load.ChargeLoad (a p(t) per facet); pressure: p(t) (Pa), for a charge the
-    mean over the loaded boundary; h: the time step (s), n_steps of it to case.time.end."""
+    mean over the loaded boundary; dt_crit: the stable explicit step (s) of the bulk with its
+    bars and, under imex, its viscosity; h: the time step (s), n_steps of it to
+    case.time.end."""
     case: object
     comm: object
     domain: object
@@ -42,13 +43,9 @@ class Problem:
     held: np.ndarray
     load: object
     pressure: object
+    dt_crit: float
     h: float
     n_steps: int
-
-    @property
-    def dt_crit(self):
-        """The bulk's (and bars') stable explicit step (s)."""
-        return self.bulk.dt_crit
 
     @property
     def law(self):
@@ -89,7 +86,7 @@ class Problem:
         _check_boundaries(case, domain)
         space = spaces.create(domain)
         bulk_ops = bulk.assemble(space, domain, case)
-        sliver = case.time.scheme == "imex" and guards.sliver_warning(case, bulk_ops.dt_crit)
+        sliver = case.time.scheme == "imex" and guards.sliver_warning(case, bulk_ops.dt_bulk)
         if sliver and comm.rank == 0:
             print(sliver, file=sys.stderr)
         bars = _rebars(case, domain, space, bulk_ops, comm)
@@ -98,9 +95,8 @@ class Problem:
         if case.load.kind == "stretch":  # its ends are supports whose velocity is prescribed
             held = np.union1d(held, np.concatenate(end_components(space, domain)))
         stars = Stars(space, links, held)
-        if case.time.scheme == "imex" and viscosity.applies(case):  # its linear term lowers the stable step
-            bulk_ops.dt_crit *= viscosity.step_factor()
-        h, n_steps = _time_step(case, bulk_ops.dt_crit)
+        dt_crit = _stable_step(case, bulk_ops, bars, space)
+        h, n_steps = _time_step(case, dt_crit)
         if case.load.signal == "charge":
             load = ChargeLoad(case.load, space, domain, comm)
             pressure = load.mean_pressure
@@ -110,7 +106,7 @@ class Problem:
         else:
             load, pressure = compat.Function(space.V), np.zeros_like  # no pressure: p(t) = 0
         return cls(case, comm, domain, space, bulk_ops, bars, links, Jump(space, links), stars, held, load,
-                   pressure, h, n_steps)
+                   pressure, dt_crit, h, n_steps)
 
 
 def _check_boundaries(case, domain):
@@ -124,8 +120,7 @@ def _check_boundaries(case, domain):
 
 
 def _rebars(case, domain, space, bulk_ops, comm):
-    """The case's bars (None without rebar.faces); their mass joins the bulk's, and their
-    stiffness its stable step."""
+    """The case's bars (None without rebar.faces); their mass joins the bulk's."""
     if not case.rebar.faces:
         return None
     if case.geometry.kind == "file":
@@ -135,11 +130,21 @@ def _rebars(case, domain, space, bulk_ops, comm):
     bars = cables.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
                         eps_u=case.rebar.eps_u)
     bars.add_mass(bulk_ops.m.x.array)
-    # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
-    # mass, stays an upper bound
-    omega2_bars = bars.stiffness_bound(bulk_ops.m.x.array, space.V.dofmap.index_map)
-    bulk_ops.dt_crit = 2 / math.sqrt((2 / bulk_ops.dt_crit)**2 + omega2_bars)
     return bars
+
+
+def _stable_step(case, bulk_ops, bars, space):
+    """dt_crit (s): the bulk's stable explicit step, lowered by the bars' stiffness (their
+    mass already in bulk_ops.m) and, under imex, by the viscosity's linear term. Collective."""
+    dt_crit = bulk_ops.dt_bulk
+    if bars is not None:
+        # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
+        # mass, stays an upper bound
+        omega2_bars = bars.stiffness_bound(bulk_ops.m.x.array, space.V.dofmap.index_map)
+        dt_crit = 2 / math.sqrt((2 / dt_crit)**2 + omega2_bars)
+    if case.time.scheme == "imex" and viscosity.applies(case):
+        dt_crit *= viscosity.step_factor()
+    return dt_crit
 
 
 def _time_step(case, dt_crit):
@@ -147,7 +152,7 @@ def _time_step(case, dt_crit):
     the bulk's stable step; either is shortened to end exactly at time.end."""
     time = case.time
     if time.scheme == "theta":
-        h = time.dt or accuracy_time_step(case.load, time.end)
+        h = time.dt or loads.accuracy_time_step(case.load, time.end)
     else:
         h = time.cfl * dt_crit
     n_steps = math.ceil(time.end / h)

@@ -6,7 +6,9 @@ checkpointed."""
 import csv
 import json
 import os
+import pickle
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -95,6 +97,39 @@ def test_a_run_stopped_by_sigterm_and_resumed_ends_as_the_uninterrupted_run(tmp_
     whole_times = [float(t) for t in re.findall(r'timestep="([^"]+)"',
                                                 (tmp_path / "whole" / "fields.pvd").read_text())]
     assert times == whole_times and len(times) == 5
+
+
+# the integrator's parts and the outputs, keyed by name in every checkpoint; the observers
+# were keyed by their position among them until they were named
+FIXED_KEYS = ("integrator", "model", "interface", "rebars", "star_layout", "stretch", "viscosity", "fields_file")
+
+
+def positional(folder):
+    """Rewrite the checkpoint in ``folder`` as one written before the observers were named:
+    each observer's state under its class name followed by its position ("History0")."""
+    for path in (folder / "checkpoint").glob("rank*.pkl"):
+        data = pickle.loads(path.read_bytes())
+        observers = [key for key in data["objects"] if key not in FIXED_KEYS]
+        data["objects"] = {**{key: data["objects"][key] for key in FIXED_KEYS},
+                           **{f"{key}{i}": data["objects"][key] for i, key in enumerate(observers)}}
+        path.write_bytes(pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL))
+    return observers
+
+
+@pytest.mark.mpi
+def test_a_checkpoint_with_the_observers_by_position_resumes_as_one_with_their_names(tmp_path):
+    named = tmp_path / "named"
+    assert dolfrag(["run", *RUN, "--out", named], 1, stop_at=STOP_AT).returncode == 143
+    old = tmp_path / "positional"
+    shutil.copytree(named, old)
+    assert positional(old) == ["History", "Probes", "BreakTimes", "FieldSnapshots", "RequestedFragments",
+                               "BarReport"]
+    for out in (named, old):
+        resumed = dolfrag(["run", "--resume", out, "--quiet"], 1)
+        assert resumed.returncode == 0, resumed.stderr
+    got, expected = (json.loads((out / "summary.json").read_text()) for out in (old, named))
+    assert compared(got) == compared(expected) and got["resumed_from_step"] == STOP_AT
+    assert (old / "history.csv").read_text() == (named / "history.csv").read_text()
 
 
 @pytest.mark.slow

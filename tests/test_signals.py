@@ -9,7 +9,7 @@ from mpi4py import MPI
 from conftest import box, dolfrag_cli, rectangle
 from dolfrag import loads, mesh, space as spaces
 from dolfrag.case import CaseError, builtin_case_text, load_case
-from dolfrag.solver.theta import accuracy_time_step
+from dolfrag.loads import accuracy_time_step
 
 ATM = 101325.0  # Pa
 # stoichiometric H2-air at a wall (docs/loads.md): P_CJ, reflected spike, P_AICC

@@ -14,7 +14,8 @@ from dolfrag.problem import Problem
 from dolfrag.runner.driver import run
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.options import NewtonOptions
-from dolfrag.solver.theta import ConvergenceError, Theta, accuracy_time_step
+from dolfrag.loads import accuracy_time_step
+from dolfrag.solver.theta import ConvergenceError, Theta
 
 COARSE = ["mesh.size=0.004"]  # 724 triangles
 INTACT_RCCM = ["interface.law=rccm", "interface.sigma_c=1e9"]  # nothing breaks: springs + exact contact

@@ -250,6 +250,13 @@ def shortest_feature(load):
     return min([f for f in features if f > 0], default=np.inf)
 
 
+def accuracy_time_step(load, end, per_feature=20):
+    """A step (s) resolving the signal of a case.Load: its shortest_feature (s) over
+    per_feature, at most end (s) / per_feature. A priori only: it knows nothing of the
+    structure's periods or of crack events."""
+    return min(shortest_feature(load), end) / per_feature
+
+
 def signal_summary(load):
     """(peak Pa, time of the peak s, impulse Pa s, end s) of a case.Load's signal, sampled
     on [0, end] at 1/200 of its shortest feature (at most 2e6 samples) plus its kinks and

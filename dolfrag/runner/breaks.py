@@ -3,9 +3,10 @@ import numpy as np
 from mpi4py import MPI
 
 from dolfrag.solver.semismooth import ConvergenceError
+from dolfrag.runner.context import Observer
 
 
-class BreakTimes:
+class BreakTimes(Observer):
     STATE = ("break_time",)
 
     def __init__(self, ctx):

@@ -1,4 +1,5 @@
-"""What the observers of a run share: the problem, the integrator, the step just taken."""
+"""What the observers of a run share: the problem, the integrator, the step just taken, and
+what the run asks of each observer."""
 from typing import NamedTuple
 
 from dolfrag.post.fragments import fragments
@@ -12,8 +13,17 @@ class Step(NamedTuple):
     energies: object
 
 
+class Observer:
+    """What the run asks of an object that follows it, each part declared: ``columns``, its
+    history.csv columns, which ``values(step)`` gives when a row is due; ``observe(step)``,
+    called after every step; ``summarise(summary, final)``, its block of summary.json at
+    the end (runner/final.py's result). A part left None (no columns) is not asked."""
+    columns = ()
+    values = observe = summarise = None
+
+
 class RunContext:
-    """problem: problem.Problem; integ: its integrator; comm; out: the output folder (Path);
+    """problem: problem.Problem; integ: its solver.Integrator; comm; out: the output folder (Path);
     stretch: stretch.Stretch or None; break_time (n_links,) s: when each owned link broke
     (NaN while sound; kept by runner/breaks.py)."""
 

@@ -24,6 +24,7 @@ from dolfrag.runner.history import History, Probes, RebarForce
 from dolfrag.runner.loop import Guard, time_loop
 from dolfrag.runner.reports import REPORTS
 from dolfrag.runner.signals import Stop
+from dolfrag.solver import Integrator
 from dolfrag.solver.imex import Imex
 from dolfrag.solver import star_replay
 from dolfrag.solver.semismooth import ConvergenceError
@@ -33,7 +34,7 @@ from dolfrag.loads.stretch import Stretch
 REPORT_ERRORS = "report_errors.txt"  # the tracebacks of the parts of a run's end that failed
 
 
-def integrator(problem):
+def integrator(problem) -> Integrator:
     """The case's integrator (time.scheme), built from ``problem``."""
     return (Theta if problem.case.time.scheme == "theta" else Imex).from_problem(problem)
 
@@ -69,8 +70,9 @@ def run(case, out, quiet=False, comm=None, resume=False):
     stateful = _stateful(integ, ctx.stretch, output, rows + observers)
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:
+        states = _by_name(saved["objects"], rows + observers)
         for name, obj in stateful.items():
-            checkpoint.restore_object(obj, saved["objects"][name])
+            checkpoint.restore_object(obj, states[name])
         before = saved["wall_time_s"]
 
     def save(k):
@@ -142,17 +144,30 @@ def _start(case, out, comm, resume):
 def _stateful(integ, stretch, output, providers):
     """{checkpoint key: object} of every object whose state a checkpoint keeps: the
     integrator's parts, the stretch, the fields file and the history's and observers'
-    ``providers`` (in their order, which a resumed run shares)."""
+    ``providers``, each under its class name."""
     return {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
-            "star_layout": getattr(integ.interface, "layout", None), "stretch": stretch,
-            "viscosity": getattr(integ, "viscosity", None), "fields_file": output.vtk,
-            **{f"{type(o).__name__}{i}": o for i, o in enumerate(providers)}}
+            "star_layout": integ.interface.layout, "stretch": stretch,
+            "viscosity": integ.viscosity, "fields_file": output.vtk,
+            **{type(o).__name__: o for o in providers}}
+
+
+def _by_name(states, providers):
+    """A checkpoint's {key: state} with each of ``providers`` under its class name. A
+    checkpoint written before the observers were named keys them by class name and
+    position among the providers ("History0"), an order a resumed run shares: those keys
+    are renamed, so that such a run still resumes."""
+    states = dict(states)
+    for i, provider in enumerate(providers):
+        name = type(provider).__name__
+        if f"{name}{i}" in states:
+            states[name] = states.pop(f"{name}{i}")
+    return states
 
 
 def _guard(integ, stop, stateful):
-    """For an integrator that can abandon a step (its ``interrupt``), the loop.Guard of its
+    """For an integrator that can abandon a step (``abandonable``), the loop.Guard of its
     steps, keeping what a step changes; else None."""
-    if not hasattr(integ, "interrupt"):
+    if not integ.abandonable:
         return None
     changed = ("integrator", "model", "interface", "star_layout", "rebars", "stretch", "viscosity")
     return Guard(integ, stop, checkpoint.Rewind([stateful[name] for name in changed]))
@@ -160,7 +175,7 @@ def _guard(integ, stop, stateful):
 
 def _dump_failed_stars(integ, out, comm):
     """Each rank's unconverged vertex stars (imex), for solver/star_replay.py."""
-    failed = getattr(integ.interface, "failed", None)  # only the nonsmooth star solver has them
+    failed = integ.interface.failed
     if failed is not None:
         star_replay.dump(Path(out) / f"failed_stars_rank{comm.rank}.npz", failed, t=integ.t, step=integ.n,
                          rank=comm.rank)
@@ -173,13 +188,13 @@ def _observers(ctx, resume_step):
     resume_step, if given)."""
     reports = [report(ctx) for report in REPORTS if report.applies(ctx.case)]
     history = History(ctx)
-    rows = [history, Probes(ctx), *(r for r in reports if hasattr(r, "values")),
+    rows = [history, Probes(ctx), *(r for r in reports if r.columns),
             *([RebarForce(ctx)] if RebarForce.applies(ctx.problem) else [])]
     fields = FieldSnapshots(ctx, None, resume_step)
     output = RunOutput(ctx.out, ctx.comm, [c for row in rows for c in row.columns], fields=bool(fields.steps),
                        resume_step=resume_step)
     fields.output = output
-    observers = [BreakTimes(ctx), fields, RequestedFragments(ctx), *(r for r in reports if hasattr(r, "observe"))]
+    observers = [BreakTimes(ctx), fields, RequestedFragments(ctx), *(r for r in reports if r.observe is not None)]
     return history, rows, observers, reports, fields, output
 
 
@@ -191,7 +206,7 @@ def _complete(ctx, output, fields, summary, summarising, reports, stop):
     final = end.part("fragments", lambda: finish(ctx, output, fields.damage, summary["wall_time_s"], summary))
     if final is not None:
         for observer in dict.fromkeys(summarising):  # each once, in order
-            if hasattr(observer, "summarise"):
+            if observer.summarise is not None:
                 end.part(f"{type(observer).__name__}.summarise", lambda: observer.summarise(summary, final))
     end.settle(summary)
     output.summary(summary)

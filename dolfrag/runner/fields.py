@@ -8,9 +8,10 @@ import numpy as np
 
 from dolfrag import compat
 from dolfrag.post.output import dof_damage
+from dolfrag.runner.context import Observer
 
 
-class FieldSnapshots:
+class FieldSnapshots(Observer):
     def __init__(self, ctx, output, resume_step=None):
         self.ctx, self.output, self.resume_step = ctx, output, resume_step
         fields, n_steps = ctx.case.output.fields, ctx.problem.n_steps

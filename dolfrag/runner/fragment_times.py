@@ -1,8 +1,9 @@
 """Fragments at given times (the step nearest each): output.fragments_at for summary.json,
 or a report's own measuring time."""
+from dolfrag.runner.context import Observer
 
 
-class FragmentTimes:
+class FragmentTimes(Observer):
     """``times`` (s); ``measured``: {time: (time of the step nearest it (s), Fragments)}."""
     STATE = ("pending", "measured")
 

@@ -4,6 +4,7 @@ import sys
 
 import numpy as np
 from mpi4py import MPI
+from dolfrag.runner.context import Observer
 
 ENERGY_COLUMNS = ["E_kinetic_J", "E_bulk_J", "E_interface_J", "E_rebar_J", "D_damage_J", "D_contact_J",
                   "D_numerical_J", "D_rebar_plastic_J", "D_viscous_J", "W_external_J", "balance_error_J"]
@@ -53,7 +54,7 @@ class History:
         summary["balance_error_relative"] = self.max_error / self.max_work if self.max_work else 0.0
 
 
-class Probes:
+class Probes(Observer):
     """The mean velocity of every named boundary (owned dofs), a history column per
     component: v<axis>_<boundary>_m_s."""
 
@@ -73,7 +74,7 @@ class Probes:
         return list(sums[:, 0] / np.maximum(sums[:, 1], 1))
 
 
-class RebarForce:
+class RebarForce(Observer):
     """The largest bar force (N, N/m in 2D) of the step, and the bars' summary block."""
     columns = ["rebar_force_max_N"]
 

@@ -54,6 +54,7 @@ class ElasticSprings:
     iterations = unconverged = stalled = 0  # a direct solve
     residual = 0.0
     reaction = None  # the inverted blocks give prescribed components no increment
+    layout = failed = None  # no star layout to checkpoint, no star left unsolved
 
     def solve(self, f, u, v, out):
         fl = self.flat
@@ -140,10 +141,16 @@ class Imex:
         self._imposed = (comps, velocity)
 
     @property
+    def abandonable(self):
+        """Whether a stop request can abandon a step midway: not with linear springs, whose
+        steps are short (a stop waits for their end)."""
+        return not isinstance(self.interface, ElasticSprings)
+
+    @property
     def interrupt(self):
         """None, or a stop request (solver/interrupt.py) that the interface solver asks once
         a step; set, a stop abandons the step with StepInterrupted. Absent (AttributeError)
-        with linear springs, whose steps are short: a stop waits for their end."""
+        unless ``abandonable``."""
         return self.interface.interrupt
 
     @interrupt.setter

@@ -7,9 +7,10 @@ from dolfrag import bunker
 from dolfrag.post import bunker as post
 from dolfrag.post.figures import DAMAGE_RANGE, broken_mesh_png, deflection_png, figure_title
 from dolfrag.post.wall import peak
+from dolfrag.runner.context import Observer
 
 
-class BunkerReport:
+class BunkerReport(Observer):
     columns = ["w_long_wall_m"]
     STATE = ("deflection",)  # s, m: the long wall's centre deflection, outward (+y)
 

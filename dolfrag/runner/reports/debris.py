@@ -8,6 +8,7 @@ from scipy.spatial import ConvexHull
 from dolfrag.post import debris
 from dolfrag.post.figures import debris_map_png, milliseconds
 from dolfrag.post.output import write_csv
+from dolfrag.runner.context import Observer
 
 
 def footprint(space, comm):
@@ -27,7 +28,7 @@ def plan_centre(space, mass, comm):
     return totals[:2] / totals[2]
 
 
-class DebrisReport:
+class DebrisReport(Observer):
     """The plan-view footprint, centre and (by default) ground level of the undeformed body,
     taken when the run starts; the throw at its end."""
 

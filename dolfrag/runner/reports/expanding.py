@@ -1,9 +1,10 @@
 """The expanding bar (load.kind = "stretch"): the ``expanding_bar`` block, fragments in the
 reference configuration against the closed forms at the stretch's rate."""
 from dolfrag.post import expanding
+from dolfrag.runner.context import Observer
 
 
-class ExpandingBarReport:
+class ExpandingBarReport(Observer):
 
     @staticmethod
     def applies(case):

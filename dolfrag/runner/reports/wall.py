@@ -11,6 +11,7 @@ from dolfrag.post import wall
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
                                   wave_png)
 from dolfrag.runner.final import EXPLODE
+from dolfrag.runner.context import Observer
 
 
 class WallSection(NamedTuple):
@@ -63,7 +64,7 @@ def estimates(case, pressure, C_N, tensile_strength, section):
                           kind, mat.nu if bends_in_plane_strain else 0.0)
 
 
-class WallReport:
+class WallReport(Observer):
     columns = ["w_midspan_m"]
     # deflection: s, m (the midspan deflection, mean displacement across the thickness);
     # wave: this rank's midspan dofs, depth (m) and velocity across the thickness (m/s) at each row

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import compat, loads
+from dolfrag import compat
 from dolfrag.interface.contact import link_blocks
 from dolfrag.solver import semismooth
 from dolfrag.solver.energy import global_energies, reaction_work
@@ -66,6 +66,7 @@ class NewtonReport:
     cutting, the largest final scaled residual of its sub-steps, and the energy the contact
     reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged
     and stalled stay 0: a step that does not converge is cut, then raises ConvergenceError."""
+    layout = failed = None  # one global system: no star layout, no star left unsolved
     max_iterations: int
     rtol: float
     iterations: int = 0
@@ -74,14 +75,6 @@ class NewtonReport:
     unconverged: int = 0
     stalled: int = 0
     contact_dissipated: float = 0.0
-
-
-def accuracy_time_step(load, end, per_feature=20):
-    """A step (s) resolving the load signal (case.Load): its shortest feature
-    (loads.shortest_feature: a rise, a decay, a table interval, an oscillation's half period)
-    over per_feature, at most end / per_feature. A priori only: it knows nothing of the
-    structure's periods or of crack events."""
-    return min(loads.shortest_feature(load), end) / per_feature
 
 
 class Theta:
@@ -103,6 +96,8 @@ class Theta:
     # Newton iteration (a theta step may take minutes, more than a launcher waits after its
     # SIGTERM); True abandons the step with StepInterrupted
     interrupt = None
+    abandonable = True
+    viscosity = None  # the bulk viscosity is explicit: imex's alone
 
     def __init__(self, space, bulk, jump, model, load, pressure, h, theta=0.5, constrained=(), rebars=None,
                  options=NewtonOptions(), *, contact):
