@@ -26,7 +26,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from dolfrag import guards, outdir
+from dolfrag import guards, loads, outdir
 from dolfrag.case import CaseError, load_case
 
 COMMAND_VARIABLE = "DOLFRAG_BATCH_COMMAND"
@@ -141,7 +141,7 @@ def job_script(case, overrides, ranks, time, out, overwrite=False, partition=Non
     limit_seconds(time)
     check_partition(partition)
     loaded = load_case(case, overrides)
-    guards.check(loaded)
+    guards.check(loaded, loads.applied(loaded.load))
     outdir.check(out, overwrite)
     return script(case, overrides, ranks, time, out, command(), Path.cwd(), partition, f"dolfrag-{loaded.name}")
 

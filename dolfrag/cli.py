@@ -113,17 +113,18 @@ def _plot_load(case, out, comm):
     if case.load.signal == "charge":
         _plot_charge(case, out, comm)
         return
-    peak, peak_time, impulse, duration = loads.signal_summary(case.load)
+    applied = loads.applied(case.load, comm)
+    peak, peak_time, impulse, duration = loads.signal_summary(applied)
     path = Path(out or f"results/{case.name}/load.png")
     if comm.rank == 0:
         path.parent.mkdir(parents=True, exist_ok=True)
-    signal_png(loads.signal(case.load), case.time.end, path, comm,
+    signal_png(loads.signal(applied), case.time.end, path, comm,
                f"{case.load.signal} on '{case.load.boundary}': peak {peak:.3g} Pa, impulse {impulse:.3g} Pa s")
     if comm.rank == 0:
         print(f"{path}\npeak_Pa = {peak:.6g}\npeak_time_s = {peak_time:.6g}\n"
               f"impulse_Pa_s = {impulse:.6g}\nduration_s = {duration:.6g}")
         if case.load.signal == "h2-air":
-            print(_h2_air_lines(loads.h2_air_numbers(case.load)))
+            print(_h2_air_lines(loads.h2_air_numbers(case.load, comm)))
 
 
 def _plot_charge(case, out, comm):
@@ -233,12 +234,11 @@ def main(argv=None):
                 print(_case_text(args.name) if args.name else _case_list())
             return 0
         case = load_case(args.case, args.set)
-        loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
         if args.command == "loads":
             _plot_load(case, args.out, comm)
             return 0
         out = args.out or f"results/{case.name}"
-        guards.check(case)  # refuse before emptying the folder
+        guards.check(case, loads.applied(case.load, comm))  # refuse before emptying the folder
         outdir.prepare(out, args.overwrite, comm)
         summary = run(case, out, quiet=args.quiet, comm=comm)
         return _report(summary, out, comm, args.quiet, args.debug)

@@ -70,23 +70,23 @@ def sliver_warning(case, dt_crit):
             "sets it; another mesh.size, or gmsh's Mesh.Smoothing and Mesh.OptimizeThreshold in a .geo, may remove it")
 
 
-def steps_estimate(case):
+def steps_estimate(case, applied_load):
     """Time steps of the run: time.end over the step, for imex time.cfl x the bulk's
     estimated stable step at mesh.size with the stiffest material, for theta time.dt or
-    the load's accuracy step."""
+    the accuracy step of the load as applied (``applied_load``, loads.applied)."""
     time = case.time
     if time.scheme == "theta":
         from dolfrag.loads import accuracy_time_step
-        return time.end / (time.dt or accuracy_time_step(case.load, time.end))
+        return time.end / (time.dt or accuracy_time_step(applied_load, time.end))
     factor = viscosity.step_factor() if viscosity.applies(case) else 1.0  # it lowers the stable step
     return time.end / (time.cfl * factor * stable_step_estimate(case))
 
 
-def check(case):
+def check(case, applied_load):
     """Refuse (CaseError) a case whose mesh or run is above run.max_cells / run.max_steps,
-    or whose mesh.size exceeds the body's thinnest extent. Returns the warning (one line,
-    or None) when fewer than THIN elements fit across the loaded thickness or the thinnest
-    extent."""
+    or whose mesh.size exceeds the body's thinnest extent; applied_load: its load as applied
+    (loads.applied). Returns the warning (one line, or None) when fewer than THIN elements
+    fit across the loaded thickness or the thinnest extent."""
     h = case.mesh.size
     sides = extents(case.geometry)
     thinnest = None if sides is None else min(range(len(sides)), key=sides.__getitem__)
@@ -98,7 +98,7 @@ def check(case):
     if cells is not None and cells > case.run.max_cells:
         raise CaseError(f"mesh.size = {h!r}: about {cells:.3g} cells, above run.max_cells = "
                         f"{case.run.max_cells:g}; raise mesh.size or run.max_cells (--set run.max_cells=...)")
-    steps = steps_estimate(case)
+    steps = steps_estimate(case, applied_load)
     if steps > case.run.max_steps:
         raise CaseError(f"time.end = {case.time.end!r}: about {steps:.3g} time steps of {case.time.end / steps:.3g} s "
                         f"(the stable step at mesh.size and material.E), above run.max_steps = "
@@ -159,6 +159,6 @@ def warn(line, comm):
         print(line, file=sys.stderr)
 
 
-def report(case, comm):
-    """check(case), its warning printed to stderr by rank 0."""
-    warn(check(case), comm)
+def report(case, applied_load, comm):
+    """check(case, applied_load), its warning printed to stderr by rank 0."""
+    warn(check(case, applied_load), comm)

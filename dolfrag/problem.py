@@ -26,7 +26,8 @@ class Problem:
     """case: case.Case; domain, space: mesh.py, space.py; bulk: bulk.py's operators (lumped
     mass m, stiffness K, the bulk's own stable step); rebars: cables.Rebars or None; links, jump, stars:
     interface/; held: flat local components held by the supports (a stretch's ends
-    included); load: Function of nodal forces per pascal, or for a charge its
+    included); applied_load: case.load as applied (loads.applied: an h2-air load shaped from
+    its gas); load: Function of nodal forces per pascal, or for a charge its
     loads.charge_load.ChargeLoad (a p(t) per facet); pressure: p(t) (Pa), for a charge the
     mean over the loaded boundary; dt_crit: the stable explicit step (s) of the bulk with its
     bars and, under imex, its viscosity; h: the time step (s), n_steps of it to
@@ -41,6 +42,7 @@ class Problem:
     jump: object
     stars: object
     held: np.ndarray
+    applied_load: object
     load: object
     pressure: object
     dt_crit: float
@@ -78,10 +80,13 @@ class Problem:
         return rate.RateStrength(self.space, self.links, interface.sigma_c)
 
     @classmethod
-    def build(cls, case, comm, owner_rule=None):
+    def build(cls, case, comm, owner_rule=None, applied_load=None):
         """Mesh and operators of ``case`` (case.Case) on ``comm``; owner_rule: which rank
-        owns each cell, as in mesh.build (default: the graph partitioner's choice). Collective.
+        owns each cell, as in mesh.build (default: the graph partitioner's choice);
+        applied_load: loads.applied(case.load, comm) when already made. Collective.
         Raises CaseError for a boundary name the mesh lacks."""
+        if applied_load is None:
+            applied_load = loads.applied(case.load, comm)
         domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule, max_cells=case.run.max_cells)
         _check_boundaries(case, domain)
         space = spaces.create(domain)
@@ -96,17 +101,17 @@ class Problem:
             held = np.union1d(held, np.concatenate(end_components(space, domain)))
         stars = Stars(space, links, held)
         dt_crit = _stable_step(case, bulk_ops, bars, space)
-        h, n_steps = _time_step(case, dt_crit)
+        h, n_steps = _time_step(case.time, applied_load, dt_crit)
         if case.load.signal == "charge":
             load = ChargeLoad(case.load, space, domain, comm)
             pressure = load.mean_pressure
         elif case.load.kind == "pressure":
             load = loads.unit_pressure_vector(space, domain, case.load.boundary, case.load.region)
-            pressure = loads.signal(case.load, comm)
+            pressure = loads.signal(applied_load)
         else:
             load, pressure = compat.Function(space.V), np.zeros_like  # no pressure: p(t) = 0
-        return cls(case, comm, domain, space, bulk_ops, bars, links, Jump(space, links), stars, held, load,
-                   pressure, dt_crit, h, n_steps)
+        return cls(case, comm, domain, space, bulk_ops, bars, links, Jump(space, links), stars, held, applied_load,
+                   load, pressure, dt_crit, h, n_steps)
 
 
 def _check_boundaries(case, domain):
@@ -147,12 +152,12 @@ def _stable_step(case, bulk_ops, bars, space):
     return dt_crit
 
 
-def _time_step(case, dt_crit):
-    """(h s, n_steps): theta's step follows accuracy (it is unconditionally stable), imex's
-    the bulk's stable step; either is shortened to end exactly at time.end."""
-    time = case.time
+def _time_step(time, applied_load, dt_crit):
+    """(h s, n_steps) for the case's ``time`` section: theta's step follows the accuracy of
+    the load as applied (it is unconditionally stable), imex's the bulk's stable step;
+    either is shortened to end exactly at time.end."""
     if time.scheme == "theta":
-        h = time.dt or loads.accuracy_time_step(case.load, time.end)
+        h = time.dt or loads.accuracy_time_step(applied_load, time.end)
     else:
         h = time.cfl * dt_crit
     n_steps = math.ceil(time.end / h)

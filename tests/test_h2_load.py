@@ -1,4 +1,4 @@
-"""The hydrogen-air explosion load (dolfrag/loads/gas.py, loads.h2_air_shape, docs/loads.md): the
+"""The hydrogen-air explosion load (dolfrag/loads/gas.py, loads.applied, docs/loads.md): the
 AICC and Chapman-Jouguet states against Cantera equilibria computed here by other routes and
 against published values; the signal's peak, t^3 rise and acoustic frequency; the per-mixture
 cache; `dolfrag loads`; the same load on 1 and 2 ranks."""
@@ -176,7 +176,7 @@ def test_deflagration_peak_rise_and_frequency_are_the_gas_ones():
     load = load_case("wall-bending-clamped", sets + ["load.amplitude=0"]).load
     state = gas.explosion(Mixture(0.296), 293.15, ATM)
     P = 0.8 * (state.P_AICC_Pa - ATM)  # (1 - heat_loss)(P_AICC - p0)
-    p = loads.signal(load)
+    p = loads.signal(loads.applied(load))
     t_r, T = load.rise, load.duration
     assert p(t_r) == pytest.approx(P, rel=1e-12)  # the mean pressure's peak, at the rise time
     t = np.linspace(0, T, 200001)
@@ -186,7 +186,7 @@ def test_deflagration_peak_rise_and_frequency_are_the_gas_ones():
     early = np.array([1e-3, 1e-2]) * t_r
     assert np.diff(np.log(p(early))) / np.diff(np.log(early)) == pytest.approx(3.0, abs=0.01)
     # the oscillation (the case's amplitude 0.1): zero crossings of p - mean give c_b / (2 L), L = 3 m
-    wavy = loads.signal(load_case("wall-bending-clamped", sets).load)
+    wavy = loads.signal(loads.applied(load_case("wall-bending-clamped", sets).load))
     f = state.c_b_m_s / 6.0
     x = wavy(t) - p(t)
     inside = (t > 0.01) & (t < 0.09)  # away from the ends, where the mean pressure is ~0
@@ -198,7 +198,7 @@ def test_deflagration_peak_rise_and_frequency_are_the_gas_ones():
 def test_detonation_spike_plateau_and_reverberations_are_the_gas_ones():
     T = 0.1  # s, the duration
     sets = DETONATION + ["load.h2_fraction=0.296", f"load.duration={T}", f"time.end={T}"]
-    p = loads.signal(load_case("wall-bending-clamped", sets + ["load.amplitude=0"]).load)
+    p = loads.signal(loads.applied(load_case("wall-bending-clamped", sets + ["load.amplitude=0"]).load))
     state = gas.explosion(Mixture(0.296), 293.15, ATM)
     assert p(0.0) == pytest.approx(state.P_reflected_Pa - ATM, rel=1e-12)
     decay = 3.0 / state.D_CJ_m_s  # default: the detonation's crossing time of the 3 m room
@@ -206,17 +206,32 @@ def test_detonation_spike_plateau_and_reverberations_are_the_gas_ones():
         state.P_AICC_Pa - ATM + (state.P_reflected_Pa - state.P_AICC_Pa) / math.e, rel=1e-12)
     late = 30 * decay  # the spike has fallen by e^-30 ~ 1e-13: the (1 - t/T) AICC plateau remains
     assert p(late) / (1 - late / T) == pytest.approx(state.P_AICC_Pa - ATM, rel=1e-9)
-    wavy = loads.signal(load_case("wall-bending-clamped", sets).load)
+    wavy = loads.signal(loads.applied(load_case("wall-bending-clamped", sets).load))
     t = np.linspace(0, T, 200001)[1:-1]
     x = (wavy(t) - p(t)) / (1 - t / T)  # 0.3 P_q exp(-t f / 3) sin(2 pi f t)
     assert crossing_frequency(t, x) == pytest.approx(state.c_b_m_s / 6.0, rel=1e-5)
 
 
 def test_lean_mixture_loads_less_than_stoichiometric():
-    lean, rich = (loads.h2_air_shape(load_case("wall-bending-clamped", DEFLAGRATION + [f"load.h2_fraction={x}"]).load)
+    lean, rich = (loads.applied(load_case("wall-bending-clamped", DEFLAGRATION + [f"load.h2_fraction={x}"]).load)
                   for x in (LEAN, 0.296))
     # lean: less heat per mole, a colder and slower burnt gas
     assert lean.peak < 0.75 * rich.peak and lean.frequency < rich.frequency
+
+
+def test_the_problem_holds_the_load_as_applied_and_an_unshaped_one_has_no_signal():
+    from mpi4py import MPI
+    from dolfrag.problem import Problem
+    case = load_case("wall-bending-clamped", DEFLAGRATION + ["load.h2_fraction=0.296", "mesh.size=0.05"])
+    problem = Problem.build(case, MPI.COMM_SELF)
+    state = gas.explosion(loads.h2_mixture(case.load), case.load.T0, case.load.p0)
+    applied = problem.applied_load
+    assert case.load.signal == "h2-air" and applied.signal == "deflagration"  # the case keeps what was asked
+    assert applied.peak == (1 - case.load.heat_loss) * (state.P_AICC_Pa - case.load.p0)
+    t = np.linspace(0.0, case.time.end, 101)
+    np.testing.assert_array_equal(problem.pressure(t), loads.signal(applied)(t))
+    with pytest.raises(ValueError, match="applied"):  # shaping is never done behind the caller's back
+        loads.signal(case.load)
 
 
 # ---------------------------------------------------------------- the cache
@@ -298,4 +313,4 @@ def test_one_and_two_ranks_apply_the_same_h2_air_load(tmp_path, cache):
     for r in ("one", "two"):
         block = json.loads((tmp_path / r / "summary.json").read_text())["load"]
         assert block["h2_air"]["D_CJ_m_s"] == state.D_CJ_m_s and block["signal"] == "h2-air"
-        assert block["peak_Pa"] == pytest.approx(loads.signal_summary(load)[0], rel=1e-12)
+        assert block["peak_Pa"] == pytest.approx(loads.signal_summary(loads.applied(load))[0], rel=1e-12)

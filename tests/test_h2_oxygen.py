@@ -109,7 +109,7 @@ def test_builtin_oxygen_cases_load_the_reflected_spike_of_stoichiometric_h2_o2(n
     load = load_case(name).load
     assert loads.h2_mixture(load) == Mixture(0.667, "oxygen", "N2", 0.0)
     state = gas.explosion(loads.h2_mixture(load), load.T0, load.p0)
-    p = loads.signal(load)
+    p = loads.signal(loads.applied(load))
     assert p(0.0) == pytest.approx(state.P_reflected_Pa - load.p0, rel=1e-12)
     # ten decay times L / D_CJ later the spike's remainder, e^-10 (P_r - P_q), is 2e-3 of the
     # AICC plateau P_q about which the reverberations swing by at most 0.3 P_q

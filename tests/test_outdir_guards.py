@@ -9,7 +9,7 @@ import pytest
 
 import dolfrag.mesh
 from conftest import ROOT, dolfrag_cli
-from dolfrag import guards
+from dolfrag import guards, loads
 from dolfrag.case import CaseError, load_case
 from dolfrag.runner.driver import run
 
@@ -17,6 +17,11 @@ pytestmark = pytest.mark.slow  # whole runs of cases, seconds each: not in `make
 
 SMALL = ["--set", "mesh.size=0.01", "--set", "time.end=2e-6", "--set", "output.fields=0",
          "--set", "output.figures=false", "--quiet"]
+
+
+def _check(case):
+    """guards.check of a case with its load as applied."""
+    return guards.check(case, loads.applied(case.load))
 
 
 def snapshot(folder):
@@ -86,8 +91,8 @@ def test_an_oversized_case_is_refused_before_gmsh_starts(override, key, tmp_path
 def test_the_limits_are_keys_that_raise_them():
     big = load_case("sound-bar", ["mesh.size=1e-4"])
     with pytest.raises(CaseError, match="about 1.15e\\+06 cells"):  # 2.4 x 0.12 x 0.04 / 1e-8 = 1.15e6
-        guards.check(load_case("sound-bar", ["mesh.size=1e-4", "run.max_cells=1e6"]))
-    assert guards.check(big) is None
+        _check(load_case("sound-bar", ["mesh.size=1e-4", "run.max_cells=1e6"]))
+    assert _check(big) is None
 
 
 def test_the_estimates_match_the_mesh_and_the_stable_step(comm):
@@ -103,18 +108,18 @@ def test_the_estimates_match_the_mesh_and_the_stable_step(comm):
         assert guards.cells_estimate(case.geometry, case.mesh.size) == pytest.approx(cells, rel=0.25)
         if case.rebar.faces:  # the bars' stiffness shortens the step, which the estimate leaves
             # out: a lower bound (measured 0.75 of the steps on this slab)
-            assert 0.6 * problem.n_steps < guards.steps_estimate(case) <= problem.n_steps
+            assert 0.6 * problem.n_steps < guards.steps_estimate(case, problem.applied_load) <= problem.n_steps
         else:
-            assert guards.steps_estimate(case) == pytest.approx(problem.n_steps, rel=0.25)
+            assert guards.steps_estimate(case, problem.applied_load) == pytest.approx(problem.n_steps, rel=0.25)
 
 
 @pytest.mark.parametrize("override, axis", [("mesh.size=0.015", "geometry.width"),
                                             ("load.boundary='bottom'", "geometry.width")])
 def test_a_thin_body_gets_one_warning_line(override, axis):
     case = load_case("sound-bar", ["mesh.size=0.015", override, "supports.rollers=[]"])
-    warning = guards.check(case)
+    warning = _check(case)
     assert warning is not None and axis in warning and "\n" not in warning
-    assert guards.check(load_case("sound-bar", ["mesh.size=0.01"])) is None  # 4 across the width
+    assert _check(load_case("sound-bar", ["mesh.size=0.01"])) is None  # 4 across the width
 
 
 def test_on_2_ranks_a_non_empty_folder_is_refused_and_overwrite_empties_it(tmp_path):

@@ -101,7 +101,7 @@ def test_a_run_stopped_by_sigterm_and_resumed_ends_as_the_uninterrupted_run(tmp_
 
 # the integrator's parts and the outputs, keyed by name in every checkpoint; the observers
 # were keyed by their position among them until they were named
-FIXED_KEYS = ("integrator", "model", "interface", "rebars", "star_layout", "stretch", "viscosity", "fields_file")
+FIXED_KEYS = ("integrator", "model", "interface", "rebars", "star_layout", "viscosity", "fields_file")
 
 
 def positional(folder):

@@ -44,7 +44,7 @@ _H2_AIR = ("signal", "h2-air")
 _REVERBERATING = _DETONATION + ("h2-air",)
 _OXYGEN = ("oxidizer", "oxygen")
 _CHARGE = ("signal", "charge")
-_GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.h2_air_shape)
+_GAS = ("h2-air",)  # optional_for: keys an h2-air load may leave out (its regime decides, loads.applied)
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ class Load:
     or in oxygen, `oxidizer`, an oxygen mixture's optional `diluent`, T0, p0),
     the overpressures reduced by `heat_loss`, the acoustic frequency c_b / (2 room_length);
     `rise` (deflagration), `duration`, and optionally `amplitude`, `decay`, `damping`
-    (detonation; defaults loads.h2_air_shape).
+    (detonation; defaults loads.applied).
     table: p(t) from a CSV file (columns t [s], p [Pa]), parsed into `t` and `p`.
     charge: `mass` kg of `explosive` at `position`, a free-air or surface `burst`: every
     loaded facet its own Friedlander positive phase from the Kingery-Bulmash fits at its

@@ -12,9 +12,10 @@ fits; charge_load.py: on the mesh), so the functions here that take one case.Loa
 signal refuse it.
 
 An "h2-air" load is the deflagration or detonation shape with its levels computed from the
-gas mixture, hydrogen in air or in oxygen (``h2_air_shape``, gas.py): the functions
-here taking a case.Load accept it. Its gas states are computed once per process; ``h2_air_shape(load, comm)``,
-called collectively first, computes them on rank 0 for every rank.
+gas mixture, hydrogen in air or in oxygen (gas.py). ``applied(load, comm)`` gives the load as
+applied, that shape; the functions here that read a signal take the applied load and refuse
+an unshaped h2-air one. The gas states are computed once per process, with ``comm`` on rank 0
+for every rank.
 """
 from dataclasses import asdict, replace
 from functools import reduce
@@ -155,9 +156,9 @@ def h2_mixture(load):
     return Mixture(load.h2_fraction, load.oxidizer, load.diluent, load.diluent_fraction)
 
 
-def h2_air_shape(load, comm=None):
-    """The deflagration or detonation case.Load (``load.regime``) of an h2-air load; any
-    other load unchanged. Overpressures (Pa), the mixture's gas.Explosion E, p0 its initial
+def applied(load, comm=None):
+    """The case.Load as applied to the structure: an h2-air load becomes its deflagration
+    or detonation (``load.regime``); any other load is returned unchanged. Overpressures (Pa), the mixture's gas.Explosion E, p0 its initial
     pressure, eta = ``heat_loss``, L = ``room_length``:
 
     deflagration: peak (1 - eta)(E.P_AICC - p0), frequency E.c_b / (2 L), rise and duration
@@ -182,13 +183,13 @@ def h2_air_shape(load, comm=None):
                    damping=H2_AIR_DAMPING_PERIODS / f if load.damping is None else load.damping)
 
 
-def h2_air_numbers(load):
+def h2_air_numbers(load, comm=None):
     """The numbers behind an h2-air load's signal (SI, absolute pressures unless said
     overpressure): the mixture and its initial state, the gas.Explosion, the acoustic
     frequency (Hz), and the shape's overpressures (Pa): its peak, and for a detonation its
-    plateau, decay and damping times (s)."""
-    mixture, shaped = h2_mixture(load), h2_air_shape(load)
-    state = gas.explosion(mixture, load.T0, load.p0)
+    plateau, decay and damping times (s). ``comm`` as in applied."""
+    mixture, shaped = h2_mixture(load), applied(load, comm)
+    state = gas.explosion(mixture, load.T0, load.p0, comm)
     numbers = {**asdict(mixture), "regime": load.regime, "T0_K": load.T0, "p0_Pa": load.p0,
                "mechanism": gas.MECHANISM, "cantera": gas.ct.__version__, **asdict(state),
                "frequency_Hz": shaped.frequency, "peak_overpressure_Pa": shaped.peak, "heat_loss": load.heat_loss}
@@ -198,15 +199,17 @@ def h2_air_numbers(load):
 
 
 def _one_signal(load):
-    """ValueError for a charge, whose p(t) differs per facet (charge_load.ChargeLoad)."""
+    """ValueError for a charge, whose p(t) differs per facet (charge_load.ChargeLoad), and
+    for an h2-air load not yet shaped from its gas."""
     if load.signal == "charge":
         raise ValueError("a charge has one p(t) per loaded facet: build charge_load.ChargeLoad on the mesh")
+    if load.signal == "h2-air":
+        raise ValueError("an h2-air load's signal is shaped from its gas first: loads.applied(load, comm)")
 
 
-def signal(load, comm=None):
-    """The p(t) (Pa, vectorised over t in s) of a case.Load; ``comm`` as in h2_air_shape."""
+def signal(load):
+    """The p(t) (Pa, vectorised over t in s) of an applied case.Load (``applied``)."""
     _one_signal(load)
-    load = h2_air_shape(load, comm)
     kind = load.signal
     if kind == "triangular":
         return triangular(load.peak, load.rise, load.duration)
@@ -222,18 +225,17 @@ def signal(load, comm=None):
 
 
 def signal_end(load):
-    """Time (s) after which the signal of a case.Load is zero."""
+    """Time (s) after which the signal of an applied case.Load is zero."""
     _one_signal(load)
     return float(load.t[-1]) if load.signal == "table" else load.duration
 
 
 def shortest_feature(load):
-    """The shortest time feature (s) of a case.Load's signal, what a time step must
+    """The shortest time feature (s) of an applied case.Load's signal, what a time step must
     resolve: a rise or a decay, a table interval, an oscillation's half period (crest to
     trough, as a triangle's rise), the Friedlander initial fall t_d / (1 + alpha) (the time
     its initial slope takes to reach 0), a local peak's rise w / 2; inf if none is > 0."""
     _one_signal(load)
-    load = h2_air_shape(load)
     kind = load.signal
     if kind == "table":
         features = list(np.diff(load.t))
@@ -251,18 +253,17 @@ def shortest_feature(load):
 
 
 def accuracy_time_step(load, end, per_feature=20):
-    """A step (s) resolving the signal of a case.Load: its shortest_feature (s) over
+    """A step (s) resolving the signal of an applied case.Load: its shortest_feature (s) over
     per_feature, at most end (s) / per_feature. A priori only: it knows nothing of the
     structure's periods or of crack events."""
     return min(shortest_feature(load), end) / per_feature
 
 
 def signal_summary(load):
-    """(peak Pa, time of the peak s, impulse Pa s, end s) of a case.Load's signal, sampled
+    """(peak Pa, time of the peak s, impulse Pa s, end s) of an applied case.Load's signal, sampled
     on [0, end] at 1/200 of its shortest feature (at most 2e6 samples) plus its kinks and
     peaks known in advance (a table's points, the rise, a local peak's centre), so that a
     piecewise-linear p is integrated exactly and a corner peak is not cut."""
-    load = h2_air_shape(load)
     end = signal_end(load)
     count = int(min(2e6, np.ceil(200 * end / min(shortest_feature(load), end)))) + 1
     marks = load.t if load.signal == "table" else [x for x in (load.rise, load.local_time) if x is not None]
@@ -272,18 +273,19 @@ def signal_summary(load):
     return float(p[i]), float(t[i]), float(np.trapz(p, t)), end
 
 
-def summary_block(load, applied=None):
-    """summary.json's "load" block of a pressure case.Load: its signal's peak (Pa), time of
-    the peak (s), impulse (Pa s) and end (s) (signal_summary), and for h2-air the numbers
-    behind it (``h2_air``: h2_air_numbers); for a charge, ``applied.summary()`` (its
+def summary_block(load, applied_load, comm=None, charge=None):
+    """summary.json's "load" block of a pressure case.Load ``load``, as applied
+    (``applied_load``, from ``applied``): its signal's peak (Pa), time of the peak (s),
+    impulse (Pa s) and end (s) (signal_summary), and for h2-air the numbers behind it
+    (``h2_air``: h2_air_numbers, ``comm`` as there); for a charge, ``charge.summary()`` (its
     charge_load.ChargeLoad)."""
     if load.signal == "charge":
-        return applied.summary()
-    peak, peak_time, impulse, end = signal_summary(load)
+        return charge.summary()
+    peak, peak_time, impulse, end = signal_summary(applied_load)
     block = {"signal": load.signal, "peak_Pa": peak, "peak_time_s": peak_time, "impulse_Pa_s": impulse,
              "duration_s": end}
     if load.signal == "h2-air":
-        block["h2_air"] = h2_air_numbers(load)
+        block["h2_air"] = h2_air_numbers(load, comm)
     return block
 
 

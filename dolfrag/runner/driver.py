@@ -67,7 +67,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
     case, problem, integ = ctx.case, ctx.problem, ctx.integ
     first_step = saved["step"] if saved else 0
     history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
-    stateful = _stateful(integ, ctx.stretch, output, rows + observers)
+    stateful = _stateful(integ, output, rows + observers)
     before = 0.0  # s of wall time of the segments before this one
     if saved is not None:
         states = _by_name(saved["objects"], rows + observers)
@@ -129,11 +129,11 @@ def _start(case, out, comm, resume):
         case = checkpoint.case_of(out)
     elif not isinstance(case, Case):
         case = load_case(case)
-    loads.h2_air_shape(case.load, comm)  # an h2-air load's gas states: rank 0's, on every rank
-    guards.report(case, comm)
+    applied = loads.applied(case.load, comm)
+    guards.report(case, applied, comm)
     wall_start = perf_counter()
     saved = checkpoint.load(out, comm) if resume else None
-    problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm))
+    problem = Problem.build(case, comm, saved and checkpoint.owner_rule(saved["cells"], comm), applied)
     guards.warn(guards.toughness_warning(case), comm)  # once the mesh is known good: after bad input
     integ, stretch = prepare(problem)
     if saved is not None and saved["layout"] != _layout(problem):
@@ -141,13 +141,12 @@ def _start(case, out, comm, resume):
     return RunContext(problem, integ, comm, out, stretch, np.full(len(problem.links), np.nan)), saved, wall_start
 
 
-def _stateful(integ, stretch, output, providers):
+def _stateful(integ, output, providers):
     """{checkpoint key: object} of every object whose state a checkpoint keeps: the
-    integrator's parts, the stretch, the fields file and the history's and observers'
+    integrator's parts, the fields file and the history's and observers'
     ``providers``, each under its class name."""
     return {"integrator": integ, "model": integ.model, "interface": integ.interface, "rebars": integ.rebars,
-            "star_layout": integ.interface.layout, "stretch": stretch,
-            "viscosity": integ.viscosity, "fields_file": output.vtk,
+            "star_layout": integ.interface.layout, "viscosity": integ.viscosity, "fields_file": output.vtk,
             **{type(o).__name__: o for o in providers}}
 
 
@@ -169,7 +168,7 @@ def _guard(integ, stop, stateful):
     steps, keeping what a step changes; else None."""
     if not integ.abandonable:
         return None
-    changed = ("integrator", "model", "interface", "star_layout", "rebars", "stretch", "viscosity")
+    changed = ("integrator", "model", "interface", "star_layout", "rebars", "viscosity")
     return Guard(integ, stop, checkpoint.Rewind([stateful[name] for name in changed]))
 
 
@@ -275,7 +274,8 @@ def _header(case, problem, integ, comm):
             "links": comm.allreduce(len(problem.links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
             "steps": problem.n_steps, "dt_s": integ.h, "dt_crit_s": problem.dt_crit,
             "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
-            **({"load": loads.summary_block(case.load, problem.load)} if case.load.kind == "pressure" else {}),
+            **({"load": loads.summary_block(case.load, problem.applied_load, comm, charge=problem.load)}
+               if case.load.kind == "pressure" else {}),
             "status": "running"}
 
 

@@ -2,7 +2,6 @@
 one is due, checkpoint every output.checkpoint_every seconds of wall time and at the end,
 stop at the end of a step when a signal came (runner/signals.py), or within a long step
 (solver/interrupt.py): then back to the state before it."""
-import dataclasses
 from time import perf_counter
 
 from dolfrag.runner.context import Step
@@ -33,18 +32,6 @@ class Guard:
         self.rewind.restore()
 
 
-def advance(ctx, energies):
-    """One step of the integrator; the Energies at its mid-step if ``energies``, else None.
-    A stretch books its ends' work, and adds it with E_{-1/2} to the external work."""
-    integ, stretch = ctx.integ, ctx.stretch
-    result = integ.step(energies=energies)
-    if stretch is not None:
-        stretch.book(integ)
-        if result is not None:
-            result = dataclasses.replace(result, external_work=result.external_work + stretch.supplied(ctx.comm))
-    return result
-
-
 def time_loop(ctx, observers, rows, output, stop, save, progress, first_step=0, guard=None):
     """Steps first_step + 1 .. n_steps. observers: objects with ``observe(Step)``; rows:
     objects with ``values(Step)``, the history columns in order; save(k): write the
@@ -62,7 +49,7 @@ def time_loop(ctx, observers, rows, output, stop, save, progress, first_step=0, 
         if guard is not None:
             guard.arm(slow)
         try:
-            step = Step(k, t_n, advance(ctx, k % every == 0 or k == n_steps))
+            step = Step(k, t_n, integ.step(energies=k % every == 0 or k == n_steps))
         except StepInterrupted:
             guard.restore()
             save(k - 1)

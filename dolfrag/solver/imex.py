@@ -129,8 +129,9 @@ class Imex:
         """Prescribe the velocity of supported components from now on: ``velocity(t)``
         (m/s, an array like ``comps``) at the mid-step times t_{n+1/2}; comps: flat local
         components, all held by the supports. Drives patch tests and imposed motions; the
-        reactions are the step solver's ``reaction`` (N), and their work is not in the
-        energy balance."""
+        reactions are the step solver's ``reaction`` (N). Their work joins the external
+        work, h R.V in a step (V the imposed velocity), booked by the rank whose stars hold
+        the component: the same discrete work as a pressure's, so the balance closes."""
         comps = np.asarray(comps, dtype=np.int64)
         if self.interface.reaction is None:
             raise ValueError("impose: the elastic law's inverted star blocks cannot move "
@@ -138,7 +139,15 @@ class Imex:
         if not self.interface.stars.constrained[comps].all():
             raise ValueError("impose: every component must be held by a support "
                              "(supports.clamped or supports.rollers)")
-        self._imposed = (comps, velocity)
+        self._imposed = (comps, velocity, np.isin(comps, self.star_comps))
+
+    def set_velocity(self, v):
+        """Start from the velocity v (m/s, every local component): v_{-1/2}. Its kinetic
+        energy E_{-1/2} counts as work supplied before the first step, so that the balance
+        still reads E_{n+1/2} = W_{n+1/2}."""
+        self.v.x.array[:] = v
+        own = self.owned
+        self.work += 0.5 * self.m[own] @ self.v.x.array[own] ** 2
 
     @property
     def abandonable(self):
@@ -184,13 +193,16 @@ class Imex:
 
         dv[:] = 0.0
         if self._imposed is not None:
-            comps, velocity = self._imposed
-            dv[comps] = velocity(self.t + h / 2) - v[comps]
+            comps, velocity, booked = self._imposed
+            held = velocity(self.t + h / 2)
+            dv[comps] = held - v[comps]
         if energies:
             g_n = self.jump(u)  # for the energy at the mid jump
         if self.strength is not None:
             self._set_strengths(v)
         self.interface.solve(f, u, v, dv)
+        if self._imposed is not None:
+            self.work += h * self.interface.reaction[comps[booked]] @ held[booked]
         mine = dv[self.star_shared]
         timer.lap("interface")
         compat.scatter_reverse_add(self.dv)

@@ -46,8 +46,8 @@ class BarReport(FragmentTimes):
         sigma_c = self.ctx.problem.law.tensile_strength(case.interface, integ.model.C_N)
         rho, E = case.material.rho, case.material.E
         closed = None if sigma_c is None else analytic.bar_spall(
-            loads.signal(case.load), analytic.wave_speed(E, rho), rho, sigma_c, case.geometry.length,
-            loads.signal_end(case.load), at=measured_at)
+            loads.signal(self.ctx.problem.applied_load), analytic.wave_speed(E, rho), rho, sigma_c,
+            case.geometry.length, loads.signal_end(self.ctx.problem.applied_load), at=measured_at)
         summary["shpb"] = shpb.shpb_block(final.fragments, at_measure, measured_at, self.free_end, sigma_c, rho, E,
                                           case.name, closed_form=closed,
                                           free_end_velocity=self.probe.series(self.ctx.comm),
