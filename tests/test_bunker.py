@@ -115,11 +115,16 @@ def test_a_door_panel_weakened_by_its_own_material_keeps_the_group():
 
 
 # The small room under a fast, strong pressure (a triangular pulse of 2 MPa over 40 us) with
-# a weak concrete (sigma_c = 0.5 MPa): the inner faces crack within the 30 steps. Friction
-# off, as in the slab's rank test: every star problem then has one answer.
+# the reference paper's coupling and a weak concrete (sigma_c = 0.5 MPa): the inner faces
+# crack within the 16 steps, free fragments and throw debris, and what this checks is that the
+# ranks agree on them. Friction off, as in the slab's rank test: every star problem then has
+# one answer. (The case's linear softening, made as brittle with G_c = 0.1 J/m^2 under 4 MPa,
+# broke as many links on two ranks as on one, but in one of two tries some at another step:
+# fracture this brittle amplifies the round-off of the ranks' sums.)
 REDUCED = SMALL + ["load.signal='triangular'", "load.h2_fraction=", "load.regime=", "load.room_length=",
                    "load.peak=2e6", "load.rise=2e-5", "load.duration=4e-5", "time.end=1.2e-4",
-                   "interface.sigma_c=5e5", "interface.mu=0", "output.fields=0", "output.figures=false"]
+                   "interface.law=rccm", "interface.rate_effect=", "interface.G_c=", "interface.sigma_c=5e5",
+                   "interface.mu=0", "output.fields=0", "output.figures=false"]
 
 
 @pytest.fixture(scope="module")
