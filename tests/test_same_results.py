@@ -1,5 +1,5 @@
 """Every built-in case and the demos' cases, shortened and as shipped, give the numbers
-recorded in tests/data/same_results.json (`python tests/test_same_results.py record`): a pin
+recorded in tests/data/same_results.json (`python tests/test_same_results.py record [NAME ...]`): a pin
 against changes that should not change a result (a refactoring, a faster kernel, a new
 layout). A change that changes a result on purpose records again, and its commit says why:
 `git log tests/data/same_results.json` names the commit of each recording.
@@ -100,12 +100,13 @@ def test_same_results(name, tmp_path):
             abs(v) for k, v in expected["history_last"].items() if k.split("_")[-1] == key.split("_")[-1])), key
 
 
-if __name__ == "__main__" and sys.argv[1:] == ["record"]:
+if __name__ == "__main__" and sys.argv[1:2] == ["record"]:
     import tempfile
-    recorded = {}
-    for name in CASES:
+    names = sys.argv[2:] or list(CASES)  # `record NAME ...` records those cases again, keeping the others'
+    recorded = json.loads(DATA.read_text()) if sys.argv[2:] else {}
+    for name in names:
         with tempfile.TemporaryDirectory() as tmp:
             recorded[name] = measure(name, tmp)
             print(name, recorded[name]["steps"], recorded[name]["broken_links"], recorded[name]["fragments"],
                   flush=True)
-    DATA.write_text(json.dumps(recorded, indent=1) + "\n")
+    DATA.write_text(json.dumps({name: recorded[name] for name in CASES}, indent=1) + "\n")
