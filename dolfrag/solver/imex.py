@@ -139,7 +139,8 @@ class Imex:
         if not self.interface.stars.constrained[comps].all():
             raise ValueError("impose: every component must be held by a support "
                              "(supports.clamped or supports.rollers)")
-        self._imposed = (comps, velocity, np.isin(comps, self.star_comps))
+        booked = np.flatnonzero(np.isin(comps, self.star_comps))  # positions in comps of this rank's stars'
+        self._imposed = (comps, velocity, booked, comps[booked])
 
     def set_velocity(self, v):
         """Start from the velocity v (m/s, every local component): v_{-1/2}. Its kinetic
@@ -193,7 +194,7 @@ class Imex:
 
         dv[:] = 0.0
         if self._imposed is not None:
-            comps, velocity, booked = self._imposed
+            comps, velocity, booked, booked_comps = self._imposed
             held = velocity(self.t + h / 2)
             dv[comps] = held - v[comps]
         if energies:
@@ -202,7 +203,7 @@ class Imex:
             self._set_strengths(v)
         self.interface.solve(f, u, v, dv)
         if self._imposed is not None:
-            self.work += h * self.interface.reaction[comps[booked]] @ held[booked]
+            self.work += h * self.interface.reaction[booked_comps] @ held[booked]
         mine = dv[self.star_shared]
         timer.lap("interface")
         compat.scatter_reverse_add(self.dv)
