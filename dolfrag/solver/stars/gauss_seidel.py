@@ -27,12 +27,13 @@ def sweep_space(d, q_max, L_max):
 
 
 @njit(cache=True, error_model="numpy")
-def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, ws):
+def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, tol, ws):
     """Projected Gauss-Seidel over the star's links (the nonsmooth Gauss-Seidel of LMGC90):
     with the springs' affine model of the current iterate held (traction t0 + D h B x / 4,
     read as in _evaluate: gbar and code from it), x is linear in r, x = x0 + X r, so the
     end-of-step jumps are c + G r; each link in turn projects r_l - rho_l (its gap, its
-    slip) onto the shifted Signorini-Coulomb set, rho_l = 1 / max diag G_ll. Overwrites
+    slip) onto the shifted Signorini-Coulomb set, rho_l = 1 / max diag G_ll, for ``sweeps``
+    sweeps or until none changes a reaction by more than tol of the largest. Overwrites
     x (q,) and r (L, d); ``star`` a records.Star, gbar and code as evaluate left them,
     ws a SweepSpace (a Newton step's workspaces: a star can take thousands of calls)."""
     q, L, h = star.q, star.L, star.h
@@ -148,7 +149,7 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, ws):
         for l in range(L):
             for i in range(d):
                 largest = max(largest, abs(r[l, i]))
-        if change <= 1e-14 * (largest + floor_c):
+        if change <= tol * (largest + floor_c):
             break
     for i in range(q):
         s = x0[i]

@@ -194,7 +194,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
                 continue
             if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
-                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, sw)
+                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, options.sweep_tol, sw)
                 continue
             if options.cycle < k < options.fallback:  # a shorter step along the last direction
                 if k == options.cycle + 1:
