@@ -63,8 +63,9 @@ FLOOR = 1e-6
 # 6 links; bunker-h2 at 6.95 and 7.43 ms, 15 links) converge or are accepted within stall
 # after 45-90 iterations (1e-9: unconverged). As in theta's sub-steps
 # (NewtonOptions.cycle_regularisation), the residual stays exact: a larger regularisation
-# only slows the last digits down, which is why the first pass keeps 1e-6.
-ESCALATION = 10
+# only slows the last digits down, which is why the first pass keeps 1e-6. 20 times the
+# first pass's 50 iterations: the 1,000 the second pass has had since the first pass had 100.
+ESCALATION = 20
 SECOND_REGULARISATION = 1e-3
 # A star the second pass leaves unconverged is solved a third time as in the second pass,
 # with its Gauss-Seidel sweeps run to round-off instead of StarOptions.sweep_tol: measured on

@@ -13,7 +13,12 @@ class StarOptions(NamedTuple):
     # A star has converged once its residual is below rtol of its largest term (scaled as in
     # residual.evaluate): ~1e6 times round-off, where the quadratic phase of Newton has ended.
     rtol: float = 1e-10
-    max_iterations: int = 100
+    # The first pass's iterations (a step's second pass: semismooth.ESCALATION times these).
+    # 100 before Gauss-Seidel stopped at sweep_tol: now the hard stars' last 50 iterations of
+    # the first pass mostly ran Gauss-Seidel on stars the second pass solves anyway (captured
+    # call of the cracking panel, both passes: 3.1 s at 100, 2.0-2.4 s at 50; bunker-h2 at
+    # 0.1 m on 2 ranks, 300 s resumed: 94 and 96 steps).
+    max_iterations: int = 50
     # Start each star from the affine prediction of its stored piece (solver/active_set.py);
     # False: every star from zero.
     predict: bool = True
