@@ -194,7 +194,8 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
                 continue
             if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
-                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, options.sweep_tol, sw)
+                tol = options.sweep_tol if d == 3 else options.sweep_tol_2d
+                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, tol, sw)
                 continue
             if options.cycle < k < options.fallback:  # a shorter step along the last direction
                 if k == options.cycle + 1:

@@ -83,8 +83,13 @@ class StarOptions(NamedTuple):
     # 4.1 s for the first pass and 2.8 s for the second; at 1e-4, 1.5 s and 1.4 s, every
     # star solved. At 1e-3 one star was left unsolved after the second pass. A few stars need
     # the sweeps to round-off (bunker-h2 at 0.1 m, 8.49 ms): a step's third pass gives them
-    # that (semismooth.LAST_SWEEP_TOL).
+    # that (semismooth.LAST_SWEEP_TOL). 2D stars sweep to sweep_tol_2d, round-off: their
+    # sweeps cost little, and stopped at 1e-4 they gave more star solves accepted at their
+    # best iterate (benchmarks/robustness.py, linear softening at 3 mm and rate 0.1: 4 against
+    # 1) and 1- and 2-rank runs that part ways (expanding-bar at 4 mm with fib2010: 1,502
+    # against 1,503-1,504 broken links, tests/test_rate_effect.py).
     sweep_tol: float = 1e-4
+    sweep_tol_2d: float = 1e-14
     # Stale factors (the piece's Jacobian for an earlier damage) stay Newton's matrix on their
     # piece - a chord iteration, which converges to the same solution as the exact matrix - as
     # long as each chord step divides the scaled residual by 1 / ``chord`` at least; below
