@@ -837,3 +837,21 @@ def test_a_star_that_needs_gauss_seidel_to_round_off_is_solved_by_the_third_pass
         assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
     status, residual, _ = star_replay.replay(dump, sweep_tol=semismooth.LAST_SWEEP_TOL, **second)
     assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.give_up)
+
+
+@pytest.mark.parametrize("gdim, tolerances", [(3, [DEFAULT.sweep_tol, 1e-14]), (2, [DEFAULT.sweep_tol_2d])])
+def test_the_third_pass_runs_only_where_it_sweeps_further_than_the_second(gdim, tolerances):
+    """A star left unconverged by every pass: 3D gets a second pass and a third one that
+    sweeps to LAST_SWEEP_TOL; 2D stars already sweep to round-off in the second pass, so a
+    third would repeat it exactly and is not run."""
+    from types import SimpleNamespace
+
+    from dolfrag.solver import semismooth
+    step = SimpleNamespace(options=DEFAULT, escalation=semismooth.ESCALATION, max_iterations=DEFAULT.max_iterations,
+                           stars=SimpleNamespace(gdim=gdim), status=np.array([star_kernel.UNCONVERGED]),
+                           _counters=np.zeros(4, dtype=np.int64))
+    passes = []
+    semismooth.StarNewton._solve_unconverged_again(step, lambda options, todo: passes.append(options))
+    assert [o.max_iterations for o in passes] == [semismooth.ESCALATION * DEFAULT.max_iterations] * len(passes)
+    assert [o.sweep_tol if gdim == 3 else o.sweep_tol_2d for o in passes] == tolerances
+    assert step._counters[semismooth.N_UNCONVERGED] == 1

@@ -260,7 +260,8 @@ class StarNewton:
     def _solve_unconverged_again(self, solve_stars):
         """Solve the stars the first pass left unconverged again, with ``escalation`` times
         the iterations and SECOND_REGULARISATION, and those still unconverged a third time
-        with sweeps to LAST_SWEEP_TOL; the others keep their solutions and cached factors, as
+        with sweeps to LAST_SWEEP_TOL where the second pass stopped them earlier (3D stars:
+        StarOptions.sweep_tol); the others keep their solutions and cached factors, as
         if no star had failed (so the answer does not depend on which rank a failed star fell
         to). Only those stars are solved: each star's solve depends on its own data alone
         (measured on the cracking bunker-wall-panel, 2,012 stars, one unconverged: the second
@@ -268,7 +269,11 @@ class StarNewton:
         iterations, n_first = self._counters[ITERATIONS], self._counters[N_FIRST]
         again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
                                       regularisation=SECOND_REGULARISATION)
-        for options in (again, again._replace(sweep_tol=LAST_SWEEP_TOL)):
+        passes = [again]
+        swept_to = again.sweep_tol if self.stars.gdim == 3 else again.sweep_tol_2d
+        if swept_to > LAST_SWEEP_TOL:  # else the third pass would repeat the second exactly
+            passes.append(again._replace(sweep_tol=LAST_SWEEP_TOL))
+        for options in passes:
             todo = self.status == star_kernel.UNCONVERGED
             if not todo.any():
                 break
