@@ -1,4 +1,6 @@
 """sound-bar: P-wave arrival, energy balance, and rank independence of a whole run."""
+import json
+
 import numpy as np
 import pytest
 
@@ -81,8 +83,15 @@ THRESHOLD = ["--set", "interface.law=threshold", "--set", "interface.R_c=4e5",
 RCCM_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--set", "mesh.size=0.01",
            "--set", "interface.law=rccm", "--set", "interface.sigma_c=4e5", "--set", "interface.mu=0.3",
            "--set", "time.end=4e-5"]
+# linear softening with friction in 3D, cracking at the free end from about 40 us: most steps
+# then leave rigid stars of sticking and slipping links to the second pass, whose Gauss-Seidel
+# stops at StarOptions.sweep_tol and whose stars end at a plateau within give_up
+# (benchmarks/hard_stars.py is this box)
+SOFTENING_3D = ["--set", "geometry.kind=box", "--set", "geometry.thickness=0.02", "--set", "mesh.size=0.01",
+                "--set", "interface.law=linear_softening", "--set", "interface.sigma_c=4e5",
+                "--set", "interface.G_c=0.02", "--set", "interface.mu=0.3", "--set", "time.end=5e-5"]
 VARIANTS = {"2d": [], "3d": BOX_3D, "rccm-contact": INTACT_RCCM, "linear-softening": SOFTENING,
-            "threshold": THRESHOLD, "3d-rccm-friction": RCCM_3D}
+            "threshold": THRESHOLD, "3d-rccm-friction": RCCM_3D, "3d-linear-softening": SOFTENING_3D}
 
 
 @pytest.mark.mpi
@@ -96,7 +105,7 @@ def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
     work = one["W_external_J"].max()
     speed = max(np.abs(one[name]).max() for name in one.dtype.names if name.startswith("v"))
     assert np.abs(one["balance_error_J"]).max() < 1e-10 * work  # exact discrete balance, 2D and 3D
-    if variant in ("linear-softening", "threshold", "3d-rccm-friction"):  # links break, alike on both layouts
+    if variant in ("linear-softening", "threshold", "3d-rccm-friction", "3d-linear-softening"):  # links break
         assert one["broken_links"].max() > 10 and one["newton_unconverged"].max() == 0
     for name in one.dtype.names:
         if name.startswith("newton"):
@@ -113,6 +122,13 @@ def test_one_and_two_ranks_give_the_same_history(variant, tmp_path):
         # that round-off picks differently on each layout (the iteration counts differ),
         # and each step starts from the last one's state: up to STAR_OPTIONS.rtol per step, accumulated
         # over the run (measured on 2 cores: 5.5e-10 of the speed after 100 steps, 3d-rccm-friction)
+        # A star accepted at its best iterate (stalled: Gauss-Seidel stopped early, or a
+        # plateau within give_up) ends within give_up of its own scale at a point its path
+        # picks, so each such solve may part the layouts by up to give_up (measured on
+        # 3d-linear-softening, 93 such solves: 3e-7 of the work apart, the same broken links
+        # at every row).
         steps = one["step"][-1]
-        tolerance = 1e-9 if variant in ("2d", "3d") else steps * STAR_OPTIONS.rtol
+        stalled = json.loads((tmp_path / "one" / "summary.json").read_text())["stalled_star_solves"]
+        tolerance = 1e-9 if variant in ("2d", "3d") else \
+            max(steps * STAR_OPTIONS.rtol, stalled * STAR_OPTIONS.give_up)
         assert np.allclose(one[name], two[name], rtol=0, atol=tolerance * scale), name

@@ -814,13 +814,18 @@ def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
     rigid links around an interior vertex, pressed and sticking, whose reactions are
     redundant around the ring. With the first pass's regularisation their Newton stalls
     above GIVE_UP; the second pass of a step (semismooth.ESCALATION times the iterations,
-    SECOND_REGULARISATION) solves them to RTOL or accepts them within STALL."""
+    SECOND_REGULARISATION) solves them to RTOL or, run to its end, within STALL; with the
+    plateau stop (StarOptions.plateau) it accepts them within GIVE_UP, in fewer iterations."""
     from dolfrag.solver import semismooth, star_replay
     status, residual, _ = star_replay.replay(dump, max_iterations=DEFAULT.max_iterations)
     assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
-    status, residual, _ = star_replay.replay(dump, regularisation=semismooth.SECOND_REGULARISATION,
-                                             max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
+    second = dict(regularisation=semismooth.SECOND_REGULARISATION,
+                  max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
+    status, residual, iterations = star_replay.replay(dump, plateau=second["max_iterations"], **second)
     assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.stall)
+    status, residual, stopped = star_replay.replay(dump, **second)
+    assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.give_up)
+    assert np.all((stopped < iterations) | ((stopped == iterations) & (residual <= DEFAULT.stall)))
 
 
 def test_a_star_that_needs_gauss_seidel_to_round_off_is_solved_by_the_third_pass():

@@ -132,6 +132,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
         smooth = False  # store holds an exact Jacobian formed in this call at a 3D slip (_keep_newton_factors)
         has_best = False
         best_scaled, base_scaled, halvings = np.inf, np.inf, 0
+        mark_scaled, mark_k, ending = np.inf, 0, False  # the best's last tenfold fall (StarOptions.plateau)
         chord_from = np.inf  # the residual the last chord step started from (none yet: inf)
         since = 0  # the iteration this start began after: the schedule (cycle, fallback) counts from it
         for iteration in range(1, options.max_iterations + 2):
@@ -140,7 +141,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
             k = iteration - since
             scaled_m, scaled_c = evaluate(d, star, xs, rs, data.floor_m, data.floor_c, ev)
             scaled = max(scaled_m, scaled_c)
-            last = iteration > options.max_iterations  # the best iterate, evaluated once more
+            last = iteration > options.max_iterations or ending  # the best iterate, evaluated once more
             done, stalled = _accepted(k, last, scaled_m, scaled_c, options)
             same = True
             for l in range(L):
@@ -189,7 +190,10 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
                     nw.best_x[:q], nw.best_r[:L], has_best = xs, rs, True
                 if scaled < best_scaled:
                     nw.best_x[:q], nw.best_r[:L], best_scaled = xs, rs, scaled
-            if iteration == options.max_iterations and has_best:
+                if best_scaled < 0.1 * mark_scaled or best_scaled <= options.give_up < mark_scaled:
+                    mark_scaled, mark_k = best_scaled, k
+                ending = best_scaled <= options.give_up and k - mark_k >= options.plateau
+            if (iteration == options.max_iterations or ending) and has_best:
                 xs[:], rs[:, :] = nw.best_x[:q], nw.best_r[:L]
                 continue
             if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
