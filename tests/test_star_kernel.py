@@ -18,6 +18,7 @@ from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK
 from dolfrag.solver.star_kernel import DEFAULT, Cache, Geometry, StepData
 from dolfrag.solver.stars import jacobian, lu, ordering
+from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import Star, star_at
 from dolfrag.solver.stars.residual import FROZEN, evaluate, evaluation
 
@@ -858,5 +859,5 @@ def test_the_third_pass_runs_only_where_it_sweeps_further_than_the_second(gdim, 
     passes = []
     semismooth.StarNewton._solve_unconverged_again(step, lambda options, todo: passes.append(options))
     assert [o.max_iterations for o in passes] == [semismooth.ESCALATION * DEFAULT.max_iterations] * len(passes)
-    assert [o.sweep_tol if gdim == 3 else o.sweep_tol_2d for o in passes] == tolerances
+    assert [sweep_tolerance(o, gdim) for o in passes] == tolerances
     assert step._counters[semismooth.N_UNCONVERGED] == 1

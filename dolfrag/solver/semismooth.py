@@ -49,6 +49,7 @@ from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.interrupt import Responsive, StepInterrupted
 from dolfrag.solver.star_kernel import (DEFAULT, ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, Cache, Geometry,
                                          Outputs, StepData, empty_cache)
+from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.timing import PhaseTimer
 
 # Relative size below which a star's own scales give way to the step's largest (see solve).
@@ -270,8 +271,7 @@ class StarNewton:
         again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
                                       regularisation=SECOND_REGULARISATION)
         passes = [again]
-        swept_to = again.sweep_tol if self.stars.gdim == 3 else again.sweep_tol_2d
-        if swept_to > LAST_SWEEP_TOL:  # else the third pass would repeat the second exactly
+        if sweep_tolerance(again, self.stars.gdim) > LAST_SWEEP_TOL:  # else the third pass would repeat the second exactly
             passes.append(again._replace(sweep_tol=LAST_SWEEP_TOL))
         for options in passes:
             todo = self.status == star_kernel.UNCONVERGED

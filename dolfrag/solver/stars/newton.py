@@ -12,6 +12,7 @@ from dolfrag.solver.active_set import CONTACT, SLIP, SPRING, affine_constant
 from dolfrag.solver.stars.gauss_seidel import gauss_seidel
 from dolfrag.solver.stars.jacobian import factor_jacobian, flip_rows, kind_of, note_factored
 from dolfrag.solver.stars.lu import solve_star, woodbury_factor, woodbury_solve
+from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import (APPROXIMATE, CONVERGED, EXACT, ITERATIONS, N_FIRST, N_STALLED,
                                           N_UNCONVERGED, NONE, STALE, STALLED, UNCONVERGED, star_at)
 from dolfrag.solver.stars.residual import B_SCALE, evaluate
@@ -198,8 +199,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
                 continue
             if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
                 sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
-                tol = options.sweep_tol if d == 3 else options.sweep_tol_2d
-                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, tol, sw)
+                gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, sweep_tolerance(options, d), sw)
                 continue
             if options.cycle < k < options.fallback:  # a shorter step along the last direction
                 if k == options.cycle + 1:

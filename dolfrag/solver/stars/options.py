@@ -7,6 +7,8 @@ before and after the change: see the commit that introduced this record).
 """
 from typing import NamedTuple
 
+from numba import njit
+
 
 class StarOptions(NamedTuple):
     """The star Newton's tuning (solver/stars/newton.py)."""
@@ -121,3 +123,9 @@ class StarOptions(NamedTuple):
 
 
 DEFAULT = StarOptions()
+
+
+@njit(cache=True)
+def sweep_tolerance(options, d):
+    """Where Gauss-Seidel stops for a star in ``d`` dimensions (see StarOptions.sweep_tol)."""
+    return options.sweep_tol if d == 3 else options.sweep_tol_2d
