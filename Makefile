@@ -52,8 +52,9 @@ demo: install
 	$(PY) demos/sound_bar.py
 	$(PY) demos/shpb_be16.py
 
+# --durations: the slowest tests, so that a suite grown slower says where
 test: install test-packages
-	$(PY) -m pytest -q -rs tests
+	$(PY) -m pytest -q -rs --durations=15 tests
 
 # The quick tier, after each change: neither the MPI tests nor the slow ones (whole case runs)
 check: install
@@ -72,5 +73,6 @@ $(AKANTU_VENV)/.installed:
 peer: install $(AKANTU_VENV)/.installed
 	$(PY) benchmarks/peer_akantu.py --akantu-python $(AKANTU_VENV)/bin/python
 
+# results, and the compiled kernels of every version of their sources (dolfrag/kernel_cache.py)
 clean:
-	rm -rf results .pytest_cache
+	rm -rf results .pytest_cache dolfrag/__pycache__/numba

@@ -29,6 +29,12 @@ except ImportError:
 
 __version__ = "0.1.0"
 
+# numba's cache of the compiled kernels in a directory per version of their sources: numba
+# alone would keep a kernel's compiled callees from other modules after they change
+from dolfrag.kernel_cache import use_versioned_cache  # noqa: E402
+
+use_versioned_cache()
+
 
 # the one entry point, bound after the package's settings above (the machinery of a run is
 # the package dolfrag.runner)
