@@ -820,7 +820,7 @@ def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
     from dolfrag.solver import semismooth, star_replay
     status, residual, _ = star_replay.replay(dump, max_iterations=DEFAULT.max_iterations)
     assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
-    second = dict(regularisation=semismooth.SECOND_REGULARISATION,
+    second = dict(regularisation=semismooth.SECOND_REGULARISATION, polish=semismooth.SECOND_POLISH,
                   max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
     status, residual, iterations = star_replay.replay(dump, plateau=second["max_iterations"], **second)
     assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.stall)
@@ -836,7 +836,7 @@ def test_a_star_that_needs_gauss_seidel_to_round_off_is_solved_by_the_third_pass
     regularisation, sweeps to semismooth.LAST_SWEEP_TOL) solves it within GIVE_UP."""
     from dolfrag.solver import semismooth, star_replay
     dump = Path(__file__).parent / "data" / "tight_sweeps" / "bunker-linear_softening-8.49ms.npz"
-    second = dict(regularisation=semismooth.SECOND_REGULARISATION,
+    second = dict(regularisation=semismooth.SECOND_REGULARISATION, polish=semismooth.SECOND_POLISH,
                   max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
     for kwargs in (dict(max_iterations=DEFAULT.max_iterations), second):
         status, residual, _ = star_replay.replay(dump, **kwargs)

@@ -68,6 +68,13 @@ FLOOR = 1e-6
 # first pass's 50 iterations: the 1,000 the second pass has had since the first pass had 100.
 ESCALATION = 20
 SECOND_REGULARISATION = 1e-3
+# The second pass's Newton steps between Gauss-Seidel calls (StarOptions.polish; the first
+# pass alternates, 1). The Newton step after a call lands on the piece the sweeps found and
+# pays a new Jacobian and LU; the steps after it mostly stay on that piece and reuse them, and
+# a call every other iteration undid their progress. Measured on the 26 second-pass calls of
+# benchmarks/hard_stars.py, solved again alone: 7.4-7.7 s of CPU at 1, 3.6-4.0 s from 8 to
+# 30, every star accepted within give_up; the whole box 9.3-11.0 s against 6.3-7.6 s.
+SECOND_POLISH = 10
 # A star the second pass leaves unconverged is solved a third time as in the second pass,
 # with its Gauss-Seidel sweeps run to round-off instead of StarOptions.sweep_tol: measured on
 # bunker-h2 at 0.1 m (linear softening, 8.49 ms), a 3D star that sweeps stopped at 1e-4 left
@@ -269,7 +276,7 @@ class StarNewton:
         pass over all stars took 12.8 s)."""
         iterations, n_first = self._counters[ITERATIONS], self._counters[N_FIRST]
         again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
-                                      regularisation=SECOND_REGULARISATION)
+                                      regularisation=SECOND_REGULARISATION, polish=SECOND_POLISH)
         passes = [again]
         if sweep_tolerance(again, self.stars.gdim) > LAST_SWEEP_TOL:  # else the third pass would repeat the second exactly
             passes.append(again._replace(sweep_tol=LAST_SWEEP_TOL))

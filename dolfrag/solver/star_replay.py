@@ -65,12 +65,13 @@ def dump(path, arrays, **context):
 
 
 def replay(path, regularisation=DEFAULT.regularisation, sweep_tol=DEFAULT.sweep_tol, plateau=DEFAULT.plateau,
-           **change):
+           polish=DEFAULT.polish, **change):
     """Solve the stars of the dump at ``path`` again, each alone, from the start the run gave
     them; ``change`` overrides scalars (e.g. max_iterations); regularisation: on sticking
     links' reaction diagonals (a step's second pass takes semismooth.SECOND_REGULARISATION);
     sweep_tol: where Gauss-Seidel stops (its third pass: semismooth.LAST_SWEEP_TOL);
-    plateau: StarOptions.plateau (a value above the iterations: the stars run to the end).
+    plateau: StarOptions.plateau (a value above the iterations: the stars run to the end);
+    polish: StarOptions.polish (the second pass: semismooth.SECOND_POLISH).
     Returns (status, residual, iterations) per star, star_kernel's status codes."""
     data = dict(np.load(path))
     data.update(change)
@@ -100,7 +101,7 @@ def replay(path, regularisation=DEFAULT.regularisation, sweep_tol=DEFAULT.sweep_
         out = empty_outputs(1, q, L, d)
         options = DEFAULT._replace(rtol=float(data["rtol"]), max_iterations=int(data["max_iterations"]),
                                    predict=bool(data["predict"]), regularisation=float(regularisation),
-                                   sweep_tol=float(sweep_tol), plateau=int(plateau))
+                                   sweep_tol=float(sweep_tol), plateau=int(plateau), polish=int(polish))
         star_kernel.solve_stars(geometry, step, cache, out, options)
         status[s], residual[s], iterations[s] = out.status[0], out.residual[0], out.counters[star_kernel.ITERATIONS]
     return status, residual, iterations

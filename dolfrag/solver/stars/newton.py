@@ -197,8 +197,9 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
             if (iteration == options.max_iterations or ending) and has_best:
                 xs[:], rs[:, :] = nw.best_x[:q], nw.best_r[:L]
                 continue
-            if k >= options.fallback and (k - options.fallback) % 2 == 0:  # Newton wanders: Gauss-Seidel, then polish
-                sweeps = min(options.sweeps * 2 ** ((k - options.fallback) // 2), options.max_sweeps)
+            calls, off = divmod(k - options.fallback, options.polish + 1)
+            if k >= options.fallback and off == 0:  # Newton wanders: Gauss-Seidel, then polish
+                sweeps = min(options.sweeps * 2 ** calls, options.max_sweeps)
                 gauss_seidel(d, star, xs, rs, ev.gbar, code, data.floor_c, sweeps, sweep_tolerance(options, d), sw)
                 continue
             if options.cycle < k < options.fallback:  # a shorter step along the last direction

@@ -86,6 +86,9 @@ class StarOptions(NamedTuple):
     # linear softening), and a fixed budget of 300 let each Newton polish undo them.
     sweeps: int = 300
     max_sweeps: int = 20000
+    # Newton steps from a Gauss-Seidel call's result before the next call: the first pass's
+    # (a step's second pass takes semismooth.SECOND_POLISH).
+    polish: int = 1
     # Gauss-Seidel stops earlier once no reaction changes in a sweep by more than
     # ``sweep_tol`` of the largest: it is there to find the star's piece, which Newton then
     # solves exactly; the star's answer is still held to rtol. Measured on a captured call
