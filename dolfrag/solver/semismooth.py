@@ -278,7 +278,8 @@ class StarNewton:
         again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
                                       regularisation=SECOND_REGULARISATION, polish=SECOND_POLISH)
         passes = [again]
-        if sweep_tolerance(again, self.stars.gdim) > LAST_SWEEP_TOL:  # else the third pass would repeat the second exactly
+        # a third pass where it sweeps further than the second (else it would repeat it exactly)
+        if sweep_tolerance(again, self.stars.gdim) > LAST_SWEEP_TOL:
             passes.append(again._replace(sweep_tol=LAST_SWEEP_TOL))
         for options in passes:
             todo = self.status == star_kernel.UNCONVERGED
