@@ -24,7 +24,7 @@ def _package(root, answer):
 
 
 def _g(root, cache_dir):
-    """g() of root/pkg in a new process, numba's cache in ``cache_dir`` (a callable of the package)."""
+    """g() of root/pkg in a new process, numba's cache in ``cache_dir`` ({digest}: the package's)."""
     script = textwrap.dedent(f"""
         import importlib.util, os, sys
         from pathlib import Path

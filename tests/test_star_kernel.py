@@ -807,6 +807,13 @@ def test_compiled_rccm_advance_is_trial_state_then_store(d, mu_i):
     assert len(links) // 10 < len(changed) < len(links) - len(links) // 10  # links that damage and links that do not
 
 
+def _second_pass():
+    """star_replay.replay's settings for a step's second pass (semismooth._solve_unconverged_again)."""
+    from dolfrag.solver import semismooth
+    return dict(regularisation=semismooth.SECOND_REGULARISATION, polish=semismooth.SECOND_POLISH,
+                max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
+
+
 @pytest.mark.parametrize("dump", sorted((Path(__file__).parent / "data" / "stalled_rings").glob("*.npz")),
                          ids=lambda p: p.stem)
 def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
@@ -817,11 +824,10 @@ def test_a_stalled_ring_of_sticking_links_is_solved_by_the_second_pass(dump):
     above GIVE_UP; the second pass of a step (semismooth.ESCALATION times the iterations,
     SECOND_REGULARISATION) solves them to RTOL or, run to its end, within STALL; with the
     plateau stop (StarOptions.plateau) it accepts them within GIVE_UP, in fewer iterations."""
-    from dolfrag.solver import semismooth, star_replay
+    from dolfrag.solver import star_replay
     status, residual, _ = star_replay.replay(dump, max_iterations=DEFAULT.max_iterations)
     assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
-    second = dict(regularisation=semismooth.SECOND_REGULARISATION, polish=semismooth.SECOND_POLISH,
-                  max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
+    second = _second_pass()
     status, residual, iterations = star_replay.replay(dump, plateau=second["max_iterations"], **second)
     assert np.all(status != star_kernel.UNCONVERGED) and np.all(residual <= DEFAULT.stall)
     status, residual, stopped = star_replay.replay(dump, **second)
@@ -836,8 +842,7 @@ def test_a_star_that_needs_gauss_seidel_to_round_off_is_solved_by_the_third_pass
     regularisation, sweeps to semismooth.LAST_SWEEP_TOL) solves it within GIVE_UP."""
     from dolfrag.solver import semismooth, star_replay
     dump = Path(__file__).parent / "data" / "tight_sweeps" / "bunker-linear_softening-8.49ms.npz"
-    second = dict(regularisation=semismooth.SECOND_REGULARISATION, polish=semismooth.SECOND_POLISH,
-                  max_iterations=semismooth.ESCALATION * DEFAULT.max_iterations)
+    second = _second_pass()
     for kwargs in (dict(max_iterations=DEFAULT.max_iterations), second):
         status, residual, _ = star_replay.replay(dump, **kwargs)
         assert np.all(status == star_kernel.UNCONVERGED) and np.all(residual > DEFAULT.give_up)
