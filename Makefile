@@ -44,7 +44,7 @@ $(VENV)/.installed: pyproject.toml
 	@[ -x $(PY) ] || /usr/bin/python3 -m venv --system-site-packages $(VENV)
 	$(PY) -m pip install -q --disable-pip-version-check -e ".[dev]" "numpy<2"
 	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, numba, cantera, dolfrag; print('dolfinx', dolfinx.__version__, 'numba', numba.__version__, 'cantera', cantera.__version__)"
-	@echo "Compiling the star kernels (numba, once: about half a minute)..."
+	@echo "Compiling the star kernels (numba, once per version of their sources: 3 minutes of CPU)..."
 	@$(PY) -c "from dolfrag import viscosity; from dolfrag.rebar import cables; from dolfrag.interface import rate, rccm_kernel; from dolfrag.solver import elastic_kernel, energy, star_kernel; star_kernel.warm(); elastic_kernel.warm(); viscosity.warm(); cables.warm(); rccm_kernel.warm(); rate.warm(); energy.warm()"
 	@touch $@
 
@@ -52,9 +52,16 @@ demo: install
 	$(PY) demos/sound_bar.py
 	$(PY) demos/shpb_be16.py
 
-# --durations: the slowest tests, so that a suite grown slower says where
+# -n auto --dist loadfile: one pytest worker per core (pytest-xdist), each test file on one
+# worker, so that a file's module fixtures run once and the Slurm tests share one daemon.
+# Much of the suite waits (Slurm's time limits, the slowed steps of the stop tests): on two
+# cores it took 34 minutes serially, 15.5 with two workers (and the law matrix drawing each
+# case's figures once, tests/test_law_matrix.py). An MPI test's ranks then share the cores
+# with the other worker (Open MPI's mpi_yield_when_idle made that worse: a 2-rank theta run
+# next to a busy core took 165 s instead of 10). --durations: the slowest tests, so that a
+# suite grown slower says where.
 test: install test-packages
-	$(PY) -m pytest -q -rs --durations=15 tests
+	$(PY) -m pytest -q -rs --durations=15 -n auto --dist loadfile tests
 
 # The quick tier, after each change: neither the MPI tests nor the slow ones (whole case runs)
 check: install

@@ -6,10 +6,18 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parents[1]
 MPI_RANKS = 2  # these machines have 2 cores
+# The files that take minutes (serially: 100-580 s each), run first: pytest-xdist (`make test`)
+# hands each file to the next free worker in collection order, and one started last leaves the
+# other core idle while it ends.
+LONG_FIRST = ["test_law_matrix.py", "test_resume.py", "test_batch.py", "test_same_results.py"]
+
+
+def pytest_collection_modifyitems(items):
+    items.sort(key=lambda item: LONG_FIRST.index(item.path.name) if item.path.name in LONG_FIRST
+               else len(LONG_FIRST))
 
 
 def mpirun(args, n=MPI_RANKS, timeout=300):
@@ -39,4 +47,9 @@ def box(length=0.1, width=0.05, thickness=0.03):
 
 @pytest.fixture(scope="session")
 def comm():
+    # Imported here, not at the top: under pytest-xdist (`make test`) this file is also read
+    # by the process that starts the workers, and an MPI started there (a singleton) leaves
+    # its launcher's variables (PMIX_*, OMPI_MCA_ess...) in the environment the workers
+    # inherit; each worker's mpirun then fails at once, with no message.
+    from mpi4py import MPI
     return MPI.COMM_WORLD
