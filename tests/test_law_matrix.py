@@ -1,7 +1,8 @@
 """Every built-in case with every interface law of the registry (interface/models.LAWS), as
 short runs: each accepted pair ends with summary.json status "completed" (its reports and
-observers ran, and its figures where draws_figures says), each refused pair is refused with its reason. A law added to
-the registry joins the matrix by itself; it then needs its keys in LAW_KEYS."""
+observers ran, and its figures where draws_figures says), each refused pair is refused with
+its reason. A law added to the registry joins the matrix by itself; it then needs its keys
+in LAW_KEYS."""
 import json
 import math
 
