@@ -80,6 +80,8 @@ $(AKANTU_VENV)/.installed:
 peer: install $(AKANTU_VENV)/.installed
 	$(PY) benchmarks/peer_akantu.py --akantu-python $(AKANTU_VENV)/bin/python
 
-# results, and the compiled kernels of every version of their sources (dolfrag/kernel_cache.py)
+# results, and the compiled kernels of every version of their sources (dolfrag/kernel_cache.py),
+# as well as those that versions before it left beside the sources (*.nbi, *.nbc)
 clean:
 	rm -rf results .pytest_cache dolfrag/__pycache__/numba
+	find dolfrag -name "*.nbi" -delete -o -name "*.nbc" -delete
