@@ -34,6 +34,12 @@ def extents(geometry):
     return (geometry.length, geometry.width, geometry.thickness)[:geometry.tdim]
 
 
+def elements_across(length, h):
+    """Elements gmsh puts along an edge of this length (m) at element size h (m): it places
+    int(length / h + 1.99) points (meshGEdge.cpp), so 0.2 m at h = 0.0667 m is 3 elements."""
+    return int(length / h + 0.99)
+
+
 def cells_in(sides, h, structured=False):
     """Cells gmsh makes in a rectangle or box of these sides (m) at element size h (m)."""
     if len(sides) == 3:
@@ -109,9 +115,9 @@ def check(case, applied_load):
         return None
     loaded = AXES.get(case.load.boundary) if case.load.kind == "pressure" else None
     for axis, what in ((loaded, "loaded thickness"), (thinnest, "thinnest extent")):
-        if axis is not None and axis < len(sides) and sides[axis] / h < THIN:
+        if axis is not None and axis < len(sides) and elements_across(sides[axis], h) < THIN:
             return (f"dolfrag: warning: the {what} {EXTENT_KEYS[axis]} = {sides[axis]:g} m is only "
-                    f"{sides[axis] / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
+                    f"{elements_across(sides[axis], h)} elements across at mesh.size = {h:g} m; {THIN} or more "
                     "resolve a wave or a bending crack")
     return None
 
@@ -123,11 +129,11 @@ def _bunker_warning(geometry, h):
     if h > thinnest:
         raise CaseError(f"mesh.size = {h!r}: larger than the bunker's thinnest concrete (geometry.wall, or "
                         f"geometry.door_thickness), {thinnest:g} m; must be <= {thinnest:g} m")
-    if thinnest / h >= THIN:
+    if elements_across(thinnest, h) >= THIN:
         return None
     return (f"dolfrag: warning: the bunker's thinnest concrete (geometry.wall, or geometry.door_thickness) is "
-            f"{thinnest:g} m, only {thinnest / h:.2g} x mesh.size = {h:g} m; {THIN} or more elements across "
-            "resolve a wave or a bending crack")
+            f"{thinnest:g} m, only {elements_across(thinnest, h)} elements across at mesh.size = {h:g} m; {THIN} "
+            "or more resolve a wave or a bending crack")
 
 
 def is_structure(case):

@@ -4,7 +4,7 @@ import pytest
 from mpi4py import MPI
 
 from conftest import box, rectangle
-from dolfrag import loads, mesh, space as spaces
+from dolfrag import guards, loads, mesh, space as spaces
 
 
 def test_triangular_pulse_peak_rise_duration_and_impulse():
@@ -82,3 +82,12 @@ def test_structured_rectangle_is_a_grid_of_split_squares():
     assert len(space.cell_dofs) == 2 * 20 * 4  # two triangles per 5 mm square
     # every grid line x = i h is made of facets: vertex x-coordinates are multiples of h
     assert np.allclose(np.round(space.x[:, 0] / 0.005), space.x[:, 0] / 0.005, atol=1e-9)
+
+
+@pytest.mark.parametrize("size", [0.04 / 2.9985, 0.04 / 2.5, 0.04 / 2.02, 0.04 / 1.5])
+def test_elements_across_counts_the_facets_gmsh_puts_on_an_edge(size):
+    """The thin-body warning counts elements as gmsh does, so 0.2 m at 0.0667 m is 3 across,
+    not 2.9985: the facets of the 0.04 m left edge of the rectangle."""
+    domain = mesh.build(rectangle(), size, MPI.COMM_SELF)
+    left = domain.facet_tags.find(domain.boundary_tag("left"))
+    assert len(left) == guards.elements_across(0.04, size)

@@ -113,13 +113,14 @@ def test_the_estimates_match_the_mesh_and_the_stable_step(comm):
             assert guards.steps_estimate(case, problem.applied_load) == pytest.approx(problem.n_steps, rel=0.25)
 
 
-@pytest.mark.parametrize("override, axis", [("mesh.size=0.015", "geometry.width"),
+@pytest.mark.parametrize("override, axis", [("mesh.size=0.025", "geometry.width"),
                                             ("load.boundary='bottom'", "geometry.width")])
 def test_a_thin_body_gets_one_warning_line(override, axis):
-    case = load_case("sound-bar", ["mesh.size=0.015", override, "supports.rollers=[]"])
-    warning = _check(case)
-    assert warning is not None and axis in warning and "\n" not in warning
+    case = load_case("sound-bar", ["mesh.size=0.025", override, "supports.rollers=[]"])
+    warning = _check(case)  # the 0.04 m width: 2 elements across
+    assert warning is not None and axis in warning and "2 elements across" in warning and "\n" not in warning
     assert _check(load_case("sound-bar", ["mesh.size=0.01"])) is None  # 4 across the width
+    assert _check(load_case("sound-bar", ["mesh.size=0.015"])) is None  # 0.04 / 0.015 = 2.7: gmsh puts 3
 
 
 def test_on_2_ranks_a_non_empty_folder_is_refused_and_overwrite_empties_it(tmp_path):
