@@ -53,6 +53,11 @@ def run(case, law, size, end, ranks, out, extra=()):
     folder = run_dir(out, law, size)
     summary = folder / "summary.json"
     status = json.loads(summary.read_text()).get("status") if summary.is_file() else None
+    ran_to = run_end(folder) if status else end
+    if not np.isclose(ran_to, end, rtol=1e-9, atol=0.0):
+        print(f"convergence.py: {folder} ran to time.end = {ran_to:g} s, not the {end:g} s asked; "
+              "give another --out, or --end to match it", file=sys.stderr)
+        sys.exit(2)
     if status == "completed":
         return folder
     dolfrag = Path(sys.executable).with_name("dolfrag")
@@ -68,6 +73,11 @@ def run(case, law, size, end, ranks, out, extra=()):
     print(" ".join(command), flush=True)
     subprocess.run(command, env=env, check=False)
     return folder
+
+
+def run_end(folder):
+    """time.end (s) of the run in this folder, from its summary.json."""
+    return json.loads((folder / "summary.json").read_text())["case"]["time"]["end"]
 
 
 def _csv(path):
@@ -160,13 +170,15 @@ def main():
     sizes, end = args.sizes or study["sizes"], args.end or study["end"]
     out = args.out / args.study
     for law in args.laws:
-        rows = []
+        rows, ends = [], set()
         for size in sizes:
             folder = run_dir(out, law, size) if args.table_only else run(study["case"], law, size, end,
                                                                          args.ranks, out, args.set)
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
-        print(f"\n### {study['case']}, interface.law = {law}, to {end:g} s\n")
+                ends.add(run_end(folder))
+        ended = ", ".join(f"{e:g}" for e in sorted(ends)) if ends else f"{end:g}"
+        print(f"\n### {study['case']}, interface.law = {law}, to {ended} s\n")
         print(table(rows, args.study == "panel"))
         print("\n" + verdict(rows), flush=True)
 

@@ -1,0 +1,45 @@
+"""validation/convergence.py: a study keeps its runs apart by end time, and tabulates what
+they measured (here on a run's files written by hand, so that nothing is run)."""
+import json
+import subprocess
+import sys
+
+from conftest import ROOT
+
+SCRIPT = ROOT / "validation" / "convergence.py"
+
+
+def _fake_run(out, end, h=0.1):
+    folder = out / "panel" / f"linear_softening-h{h:g}"
+    folder.mkdir(parents=True)
+    summary = {"status": "completed", "cells": 6955, "ranks": 2, "wall_time_s": 173.0,
+               "case": {"time": {"end": end}},
+               "energies_J": {"D_damage_J": 100.0, "D_contact_J": 55.0},
+               "wall": {"midspan_deflection": {"peak_m": 9.8e-4}},
+               "debris": {"hazard_distance_m": 0.0}}
+    (folder / "summary.json").write_text(json.dumps(summary))
+    (folder / "links.csv").write_text("broken,break_time_s,weight\n1,0.00767,0.226\n0,nan,0.1\n")
+    return folder
+
+
+def _study(out, *args):
+    return subprocess.run([sys.executable, str(SCRIPT), "panel", "--sizes", "0.1", "--laws", "linear_softening",
+                           "--out", str(out), *args], capture_output=True, text=True, timeout=60)
+
+
+def test_a_run_of_another_end_is_refused_not_reused(tmp_path):
+    _fake_run(tmp_path, 0.0085)
+    result = _study(tmp_path, "--end", "0.02")
+    assert result.returncode == 2, result.stderr
+    line, = result.stderr.strip().splitlines()
+    assert "0.0085" in line and "0.02" in line and "--out" in line
+
+
+def test_the_table_reads_each_run_and_its_end(tmp_path):
+    _fake_run(tmp_path, 0.0085)
+    result = _study(tmp_path, "--table-only")
+    assert result.returncode == 0, result.stderr
+    assert "to 0.0085 s" in result.stdout  # the runs' end, not the study's default 0.02 s
+    row = next(line for line in result.stdout.splitlines() if line.startswith("| 0.1 |"))
+    # first crack 7.67 ms, peak deflection 0.98 mm, D_damage + D_contact, the broken facets' area
+    assert "| 7.67 | 0.98 | 155 | 0.226 |" in row
