@@ -93,9 +93,10 @@ def face_group(face, lay, tol):
     return "outer"
 
 
-def build(gmsh, geometry, size):
+def build(gmsh, geometry, size, optimize_threshold=None):
     """Mesh the bunker of ``geometry`` with gmsh's OpenCASCADE kernel at element size
-    ``size`` (m) and name its groups. Returns the topological dimension, 3."""
+    ``size`` (m) and name its groups; optimize_threshold: gmsh's Mesh.OptimizeThreshold
+    (None: 0.8). Returns the topological dimension, 3."""
     lay = layout(geometry)
     occ = gmsh.model.occ
     boxes = {name: [(3, occ.addBox(*lo, *(hi - lo)))] for name, (lo, hi) in lay.pieces.items()}
@@ -127,7 +128,7 @@ def build(gmsh, geometry, size):
     # a quality of 0.8: then the smallest inner radius is >= 0.35 x the median (0.2 and 0.1
     # m meshes). HXT gives as good tetrahedra but not the same mesh twice.
     gmsh.option.setNumber("Mesh.Smoothing", 5)
-    gmsh.option.setNumber("Mesh.OptimizeThreshold", 0.8)
+    gmsh.option.setNumber("Mesh.OptimizeThreshold", 0.8 if optimize_threshold is None else optimize_threshold)
     gmsh.model.mesh.generate(3)
     return 3
 

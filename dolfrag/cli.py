@@ -133,7 +133,8 @@ def _plot_charge(case, out, comm):
     from dolfrag import mesh, space as spaces
     from dolfrag.loads.charge_load import ChargeLoad
     from dolfrag.post.figures import charge_png
-    domain = mesh.build(case.geometry, case.mesh.size, comm, max_cells=case.run.max_cells)
+    domain = mesh.build(case.geometry, case.mesh.size, comm, max_cells=case.run.max_cells,
+                        optimize_threshold=case.mesh.optimize_threshold)
     charge = ChargeLoad(case.load, spaces.create(domain), domain, comm)
     path = Path(out or f"results/{case.name}/load.png")
     if comm.rank == 0:

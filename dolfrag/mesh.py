@@ -96,7 +96,7 @@ def _name_boundaries(gmsh, tdim, extent):
         gmsh.model.setPhysicalName(tdim - 1, gmsh.model.addPhysicalGroup(tdim - 1, faces[name], value), name)
 
 
-def _build_box(gmsh, geometry, size):
+def _build_box(gmsh, geometry, size, optimize_threshold=None):
     tdim = geometry.tdim
     if tdim == 2:
         extent = (geometry.length, geometry.width)
@@ -116,11 +116,13 @@ def _build_box(gmsh, geometry, size):
             gmsh.model.mesh.setTransfiniteCurve(curve, max(1, round(length / size)) + 1)
         for surface in body:
             gmsh.model.mesh.setTransfiniteSurface(surface, "Alternate")
+    if optimize_threshold is not None:
+        gmsh.option.setNumber("Mesh.OptimizeThreshold", optimize_threshold)
     gmsh.model.mesh.generate(tdim)
     return tdim
 
 
-def _read_file(gmsh, path, tdim, size, max_cells):
+def _read_file(gmsh, path, tdim, size, max_cells, optimize_threshold=None):
     """Read a .geo (meshed here, at most ``size`` m, if its bounding box holds at most about
     ``max_cells`` cells) or a .msh (at most ``max_cells`` cells)."""
     if not path.exists():
@@ -136,6 +138,8 @@ def _read_file(gmsh, path, tdim, size, max_cells):
             raise CaseError(f"mesh.size = {size!r}: about {cells:.3g} cells in the bounding box of geometry.file, "
                             f"above run.max_cells = {max_cells:g}; raise mesh.size or run.max_cells")
         gmsh.option.setNumber("Mesh.CharacteristicLengthMax", size)
+        if optimize_threshold is not None:
+            gmsh.option.setNumber("Mesh.OptimizeThreshold", optimize_threshold)
         gmsh.model.mesh.generate(tdim)
     else:
         cells = sum(len(tags) for tags in gmsh.model.mesh.getElements(tdim)[1])
@@ -166,7 +170,7 @@ def _geometric_owners(owner_rule, x, gdim):
     return owners
 
 
-def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.inf):
+def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.inf, optimize_threshold=None):
     """Mesh ``geometry`` (a case.Geometry) with element size ``size`` (m) and distribute it.
 
     owner_rule: None (DOLFINx's graph partitioner decides which rank owns each cell), or a
@@ -174,7 +178,8 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.i
     partition boundary where a test wants it (e.g. ``lambda c: c[:, 0] > L / 2`` on 2
     ranks); the stars around it are still completed by star_partitioner. max_cells: the
     limit on an imported file's cells (guards.py checks a rectangle or box before this).
-    gmsh runs on rank 0 only; collective.
+    optimize_threshold: gmsh's Mesh.OptimizeThreshold for a meshed 3D geometry (None: the
+    builder's own). gmsh runs on rank 0 only; collective.
     """
     header, error = None, None
     if comm.rank == 0:
@@ -182,11 +187,11 @@ def build(geometry, size, comm=MPI.COMM_WORLD, owner_rule=None, max_cells=math.i
         try:
             gmsh.model.add("dolfrag")
             if geometry.kind == "file":
-                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size, max_cells)
+                tdim = _read_file(gmsh, Path(geometry.file), geometry.tdim, size, max_cells, optimize_threshold)
             elif geometry.kind == "bunker":
-                tdim = bunker.build(gmsh, geometry, size)
+                tdim = bunker.build(gmsh, geometry, size, optimize_threshold)
             else:
-                tdim = _build_box(gmsh, geometry, size)
+                tdim = _build_box(gmsh, geometry, size, optimize_threshold)
             header = (tdim, _physical_names(gmsh, tdim - 1), _physical_names(gmsh, tdim))
         except CaseError as err:
             error = str(err)

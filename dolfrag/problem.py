@@ -87,7 +87,8 @@ class Problem:
         Raises CaseError for a boundary name the mesh lacks."""
         if applied_load is None:
             applied_load = loads.applied(case.load, comm)
-        domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule, max_cells=case.run.max_cells)
+        domain = mesh.build(case.geometry, case.mesh.size, comm, owner_rule, max_cells=case.run.max_cells,
+                            optimize_threshold=case.mesh.optimize_threshold)
         _check_boundaries(case, domain)
         space = spaces.create(domain)
         bulk_ops = bulk.assemble(space, domain, case)

@@ -83,6 +83,9 @@ class Geometry:
 class Mesh:
     """[mesh]"""
     size: float = _f("float", bounds="> 0", unit="m")           # target element size h [m], > 0
+    # gmsh's Mesh.OptimizeThreshold in 3D: tetrahedra of lower quality are optimised (the
+    # worst one sets the explicit step); default gmsh's 0.3 for boxes and .geo, 0.8 for a bunker
+    optimize_threshold: float | None = _f("float", None, bounds="> 0, <= 1")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,57 @@
+"""The bulk's stable explicit step of a case's mesh, cell by cell (docs/performance.md,
+"The mesh's stable step").
+
+    python benchmarks/stable_step.py bunker-wall-panel --sizes 0.1 0.0667 0.05
+    python benchmarks/stable_step.py bunker-wall-panel --sizes 0.0667 --set mesh.optimize_threshold=0.6
+
+Meshes the case at each size on one process (as the run does on rank 0) and prints its cells
+and each cell's stable step 2 / omega_max of its own problem Ke x = omega^2 diag(me) x, in
+units of h / c_p (c_p the P-wave speed of the case's material): the smallest, which is the
+run's step (bars and time.cfl aside), the median, and how many cells lie below 0.2 and 0.25.
+"""
+import argparse
+import math
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfrag  # noqa: F401  (BLAS thread limit, VTK before DOLFINx)
+from dolfrag import bulk, mesh, space as spaces
+from dolfrag.case import load_case
+
+
+def cell_steps(case):
+    """Each owned cell's stable step (s) and the cell count, for the case's mesh."""
+    domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF, max_cells=case.run.max_cells,
+                        optimize_threshold=case.mesh.optimize_threshold)
+    space = spaces.create(domain)
+    operators = bulk.assemble(space, domain, case)
+    Ke, idx = bulk.cell_matrices(operators.K, space)
+    s = 1 / np.sqrt(operators.m.x.array[idx])
+    omega2 = np.linalg.eigvalsh(s[:, :, None] * Ke * s[:, None, :])[:, -1]
+    return 2 / np.sqrt(omega2)
+
+
+def p_wave_speed(material):
+    """c_p (m/s) of an isotropic material of Young's modulus E, Poisson's ratio nu, density rho."""
+    E, nu, rho = material.E, material.nu, material.rho
+    return math.sqrt(E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * rho))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("case")
+    parser.add_argument("--sizes", type=float, nargs="+", required=True, help="mesh sizes h (m)")
+    parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
+    args = parser.parse_args()
+    print("| h (m) | cells | smallest step (h/c_p) | median | cells below 0.2 | below 0.25 |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for h in args.sizes:
+        case = load_case(args.case, [*args.set, f"mesh.size={h}"])
+        steps = cell_steps(case) * p_wave_speed(case.material) / h
+        print(f"| {h:g} | {len(steps):,} | {steps.min():.3f} | {np.median(steps):.3f} | {np.sum(steps < 0.2):,} | "
+              f"{np.sum(steps < 0.25):,} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
