@@ -12,7 +12,7 @@ import scipy.sparse as sp
 import ufl
 from mpi4py import MPI
 
-from dolfrag import compat
+from dolfrag import compat, mass_scaling
 from dolfrag.case import CaseError
 
 
@@ -23,11 +23,13 @@ class Bulk:
     in the time loop (2.3x faster than the AIJ product, measured). m: Function, lumped
     mass of every dof component (kg), owned and ghost values set. dt_bulk: stable
     central-difference step of the bulk alone (s), the same on every rank (the run's,
-    with bars and viscosity, is problem.Problem.dt_crit)."""
+    with bars and viscosity, is problem.Problem.dt_crit); with mass scaling (mass_scaling.py)
+    m and dt_bulk are the scaled ones."""
     K: object
     K_cells: sp.bsr_matrix
     m: object
     dt_bulk: float
+    mass_scaling: dict | None = None  # time.mass_scaling's cells, added and total mass (kg), all ranks
 
 
 def material_fields(space, domain, default, groups):
@@ -84,17 +86,37 @@ def cell_matrices(K, space):
     return vals.reshape(-1, q)[idx], idx
 
 
+def cell_steps(Ke, me):
+    """Each cell's own central-difference limit 2/omega_e (s): omega_e^2 the largest
+    eigenvalue of Ke x = omega^2 diag(me) x (Ke (n, q, q) in N/m, me (n, q) in kg)."""
+    s = 1 / np.sqrt(me)
+    return 2 / np.sqrt(np.linalg.eigvalsh(s[:, :, None] * Ke * s[:, None, :])[:, -1])
+
+
 def stable_time_step(Ke, me, comm):
     """Central-difference limit 2/omega_max of the bulk alone (s). With K block-diagonal
-    and M diagonal, omega_max^2 is the largest eigenvalue of the cell problems
-    Ke x = omega^2 diag(me) x, so the bound is exact. Collective."""
-    s = 1 / np.sqrt(me)
-    lam = np.linalg.eigvalsh(s[:, :, None] * Ke * s[:, None, :])[:, -1] if len(Ke) else [0.0]
-    return 2 / np.sqrt(comm.allreduce(np.max(lam), op=MPI.MAX))
+    and M diagonal, omega_max^2 is the largest eigenvalue of the cell problems, so the
+    shortest cell step is exact. Collective."""
+    return comm.allreduce(cell_steps(Ke, me).min(initial=np.inf), op=MPI.MIN)
 
 
-def assemble(space, domain, case):
-    """K, lumped mass and the bulk stable step for the case's materials. Collective."""
+def scale_mass(Ke, me, p_modulus, rho, length, gdim, comm):
+    """time.mass_scaling (mass_scaling.py) on the owned cells, in place on me (n, q) (kg,
+    each vertex's mass once per component): each cell's mass times the factor that brings
+    its step up to length / c_p, with p_modulus = lambda + 2 mu (Pa) and rho (kg/m^3) per
+    cell and length = F h (m). Returns the summary block: the cells scaled, the added and
+    the total mass (kg, kg/m in 2D). Collective."""
+    factor = mass_scaling.factors(cell_steps(Ke, me), length / np.sqrt(p_modulus / rho))
+    added = comm.allreduce(float(np.sum((factor[:, None] - 1) * me)), op=MPI.SUM) / gdim
+    total = comm.allreduce(float(np.sum(me)), op=MPI.SUM) / gdim
+    me *= factor[:, None]
+    return {"cells": comm.allreduce(int(np.sum(factor > 1)), op=MPI.SUM), "added_mass_kg": added, "mass_kg": total}
+
+
+def assemble(space, domain, case, mass_scaling_share=None):
+    """K, lumped mass and the bulk stable step for the case's materials; with
+    mass_scaling_share F (time.mass_scaling), the cells' mass scaled to a step of at
+    least F h / c_p (h = case.mesh.size). Collective."""
     lam, mu, rho = material_fields(space, domain, case.material, case.materials)
     K = compat.assemble_matrix(stiffness_form(space.V, lam, mu))
     m = compat.Function(space.V)
@@ -105,4 +127,12 @@ def assemble(space, domain, case):
                            "(DOLFINx changed its DG dof layout)")
     n = len(Ke)
     K_cells = sp.bsr_matrix((Ke, np.arange(n), np.arange(n + 1)), shape=(idx.size, idx.size))
-    return Bulk(K, K_cells, m, stable_time_step(Ke, m.x.array[idx], space.mesh.comm))
+    summary = None
+    if mass_scaling_share:
+        cell_value = lambda f: f.x.array[compat.cell_dofs(lam.function_space)[:n, 0]]  # noqa: E731
+        me = m.x.array[idx]
+        summary = scale_mass(Ke, me, cell_value(lam) + 2 * cell_value(mu), cell_value(rho),
+                             mass_scaling_share * case.mesh.size, space.gdim, space.mesh.comm)
+        m.x.array[idx] = me
+        compat.scatter_forward(m)  # a ghost cell's copies take its owner's scaled mass
+    return Bulk(K, K_cells, m, stable_time_step(Ke, m.x.array[idx], space.mesh.comm), summary)

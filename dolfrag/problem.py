@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dolfrag import bulk, compat, guards, loads, mesh, space as spaces, supports, viscosity
+from dolfrag import bulk, compat, guards, loads, mass_scaling, mesh, space as spaces, supports, viscosity
 from dolfrag.case import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
@@ -91,10 +91,13 @@ class Problem:
                             optimize_threshold=case.mesh.optimize_threshold)
         _check_boundaries(case, domain)
         space = spaces.create(domain)
-        bulk_ops = bulk.assemble(space, domain, case)
+        bulk_ops = bulk.assemble(space, domain, case, case.time.mass_scaling)
         sliver = case.time.scheme == "imex" and guards.sliver_warning(case, bulk_ops.dt_bulk)
-        if sliver and comm.rank == 0:
-            print(sliver, file=sys.stderr)
+        heavy = bulk_ops.mass_scaling and mass_scaling.warning(bulk_ops.mass_scaling["added_mass_kg"],
+                                                              bulk_ops.mass_scaling["mass_kg"])
+        for line in (sliver, heavy):
+            if line and comm.rank == 0:
+                print(line, file=sys.stderr)
         bars = _rebars(case, domain, space, bulk_ops, comm)
         links = link_table.build(space)
         held = supports.constrained_components(space, domain, case.supports)

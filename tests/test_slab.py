@@ -14,10 +14,11 @@ from conftest import mpirun
 # the same branch as the 2-rank run, 2e-4 of the displacement apart there, 7e-3 at step 25;
 # docs/slab.md). Without friction every star problem is monotone: one answer.
 # gmsh optimises the tetrahedra below quality 0.6 (mesh.optimize_threshold): the mesh is made
-# on rank 0 alone, so the option gives every rank count the same mesh, which this checks.
+# on rank 0 alone, so the option gives every rank count the same mesh, which this checks; and
+# the cells whose step is below 0.3 h / c_p get mass (time.mass_scaling), each rank its own.
 REDUCED = ["geometry.length=0.2", "geometry.width=0.2", "mesh.size=0.03", "time.end=2.5e-5",
            "interface.sigma_c=4e6", "interface.mu=0", "output.fields=0", "output.figures=false",
-           "mesh.optimize_threshold=0.6"]
+           "mesh.optimize_threshold=0.6", "time.mass_scaling=0.3"]
 # DOLFINx's graph partitioner on 2 and 3 ranks, and 2 ranks with each cell on a rank drawn
 # at random (tests/mpi_partition.py): stars split everywhere. A partitioner on another
 # machine may cut the slab elsewhere; the random cut stands for any of them (it found the
@@ -45,6 +46,7 @@ def slab_runs(tmp_path_factory):
 def test_reduced_slab_gives_the_same_broken_links_fragments_and_energies_on_1_2_and_3_ranks_and_any_partition(slab_runs):
     summary, history, links, _ = slab_runs[1]
     assert summary["broken_links"] > 500 and summary["fragments"]["count"] > 5
+    assert summary["mass_scaling"]["cells"] > 0
     assert history["newton_unconverged"].max() == 0
     order = np.lexsort((links["weight"], links["nz"], links["ny"], links["nx"], links["z"], links["y"], links["x"]))
     work = history["W_external_J"].max()
@@ -53,6 +55,9 @@ def test_reduced_slab_gives_the_same_broken_links_fragments_and_energies_on_1_2_
         other, other_history, other_links, _ = slab_runs[n]
         assert other["ranks"] == (2 if n == "random" else n)
         assert other["dt_s"] == pytest.approx(summary["dt_s"], rel=1e-12), n  # the bound's sums in another order
+        assert other["mass_scaling"]["cells"] == summary["mass_scaling"]["cells"]
+        assert other["mass_scaling"]["added_mass_kg"] == pytest.approx(summary["mass_scaling"]["added_mass_kg"],
+                                                                       rel=1e-12)
         assert other["broken_links"] == summary["broken_links"]
         # the same links broken at the same steps (links.csv: 9 digits)
         other_order = np.lexsort((other_links["weight"], other_links["nz"], other_links["ny"], other_links["nx"],

@@ -283,6 +283,9 @@ class Time:
     end: float = _f("float", bounds="> 0", unit="s")              # final time [s], > 0
     scheme: str = _f("str", "imex", choices=SCHEMES)              # one of SCHEMES
     cfl: float = _f("float", 0.9, bounds="> 0, <= 1")             # imex: safety factor on bulk dt, (0, 1]
+    # imex: a cell whose stable step is below mass_scaling x mesh.size / c_p gets the mass
+    # that brings it there (mass_scaling.py); none: off
+    mass_scaling: float | None = _f("float", None, bounds="> 0, <= 1", when=("scheme", "imex"))
     # theta (Moreau-Jean, unconditionally stable): the step, default set by accuracy (the
     # load's shortest feature / 20), and theta (1/2 conserves energy, > 1/2 damps)
     dt: float | None = _f("float", None, bounds="> 0", unit="s", when=("scheme", "theta"))

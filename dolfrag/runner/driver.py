@@ -273,6 +273,7 @@ def _header(case, problem, integ, comm):
             "cells": space.mesh.topology.index_map(space.mesh.topology.dim).size_global,
             "links": comm.allreduce(len(problem.links)), "dofs": space.V.dofmap.index_map.size_global * space.gdim,
             "steps": problem.n_steps, "dt_s": integ.h, "dt_crit_s": problem.dt_crit,
+            **({"mass_scaling": problem.bulk.mass_scaling} if problem.bulk.mass_scaling else {}),
             "interface_stiffness_Pa_m": {"C_N": integ.model.C_N, "C_T": integ.model.C_T},
             **({"load": loads.summary_block(case.load, problem.applied_load, comm, charge=problem.load)}
                if case.load.kind == "pressure" else {}),
