@@ -23,13 +23,14 @@ from dolfrag.case import load_case
 
 
 def cell_steps(case):
-    """Each owned cell's stable step (s) and the cell count, for the case's mesh."""
+    """Each cell's stable step (s) of the case's mesh, and time.mass_scaling's summary
+    block (None without it)."""
     domain = mesh.build(case.geometry, case.mesh.size, MPI.COMM_SELF, max_cells=case.run.max_cells,
                         optimize_threshold=case.mesh.optimize_threshold)
     space = spaces.create(domain)
     operators = bulk.assemble(space, domain, case, case.time.mass_scaling)
     Ke, idx = bulk.cell_matrices(operators.K, space)
-    return bulk.cell_steps(Ke, operators.m.x.array[idx])
+    return bulk.cell_steps(Ke, operators.m.x.array[idx]), operators.mass_scaling
 
 
 def p_wave_speed(material):
@@ -44,13 +45,18 @@ def main():
     parser.add_argument("--sizes", type=float, nargs="+", required=True, help="mesh sizes h (m)")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE")
     args = parser.parse_args()
-    print("| h (m) | cells | smallest step (h/c_p) | median | cells below 0.2 | below 0.25 |")
-    print("|---:|---:|---:|---:|---:|---:|")
+    print("| h (m) | cells | smallest step (h/c_p) | median | cells below 0.2 | below 0.25 | cells given mass | "
+          "added mass (kg) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for h in args.sizes:
         case = load_case(args.case, [*args.set, f"mesh.size={h}"])
-        steps = cell_steps(case) * p_wave_speed(case.material) / h
-        print(f"| {h:g} | {len(steps):,} | {steps.min():.3f} | {np.median(steps):.3f} | {np.sum(steps < 0.2):,} | "
-              f"{np.sum(steps < 0.25):,} |", flush=True)
+        steps, scaled = cell_steps(case)
+        steps *= p_wave_speed(case.material) / h
+        added = (f"{scaled['cells']:,} | {scaled['added_mass_kg']:.3g} of {scaled['mass_kg']:.4g}" if scaled
+                 else "– | –")
+        below = [np.sum(steps < bound * (1 - 1e-9)) for bound in (0.2, 0.25)]  # a scaled cell sits on its target
+        print(f"| {h:g} | {len(steps):,} | {steps.min():.3f} | {np.median(steps):.3f} | {below[0]:,} | "
+              f"{below[1]:,} | {added} |", flush=True)
 
 
 if __name__ == "__main__":
