@@ -19,6 +19,8 @@ def _fake_run(out, end, h=0.1):
                "debris": {"hazard_distance_m": 0.0}}
     (folder / "summary.json").write_text(json.dumps(summary))
     (folder / "links.csv").write_text("broken,break_time_s,weight\n1,0.00767,0.226\n0,nan,0.1\n")
+    (folder / "history.csv").write_text("step,time_s,w_midspan_m,D_damage_J,D_contact_J,broken_links\n"
+                                        "10,0.0059,-2.0e-4,1.0,0.0,0\n20,0.0081,-8.0e-4,90.0,10.0,27\n")
     return folder
 
 
@@ -43,3 +45,12 @@ def test_the_table_reads_each_run_and_its_end(tmp_path):
     row = next(line for line in result.stdout.splitlines() if line.startswith("| 0.1 |"))
     # first crack 7.67 ms, peak deflection 0.98 mm, D_damage + D_contact, the broken facets' area
     assert "| 7.67 | 0.98 | 155 | 0.226 |" in row
+
+
+def test_the_state_at_given_times_comes_from_the_nearest_history_row(tmp_path):
+    _fake_run(tmp_path, 0.0085)
+    result = _study(tmp_path, "--table-only", "--at", "0.006", "0.008")
+    assert result.returncode == 0, result.stderr
+    row = [line for line in result.stdout.splitlines() if line.startswith("| 0.1 |")][-1]
+    # |w| in mm, D_damage + D_contact, broken links, at the rows of 5.9 and 8.1 ms
+    assert row == "| 0.1 | 0.200, 1, 0 | 0.800, 100, 27 |"

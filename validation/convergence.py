@@ -5,6 +5,7 @@
     python validation/convergence.py wall --sizes 0.02 0.01 --end 0.04 --ranks 2
     python validation/convergence.py wall --table-only          # the table of the runs already made
     python validation/convergence.py wall --set load.peak=2e5 --out results/convergence-2bar   # below the resistance
+    python validation/convergence.py panel --table-only --at 0.006 0.008   # also the runs' state at 6 and 8 ms
 
 Each study runs its case at each mesh size with concrete C30/37 from its class, once with
 linear softening and the fib Model Code 2010 rate factor, and once with the reference paper's
@@ -154,6 +155,26 @@ def verdict(rows):
     return f"h = {h1:g} against {h2:g} m: " + "; ".join(parts)
 
 
+def history_at(folder, times):
+    """Rows of the run's history.csv nearest to each time (s): midspan deflection (m),
+    D_damage + D_contact (J), broken links."""
+    rows = _csv(folder / "history.csv")
+    t = np.array([float(row["time_s"]) for row in rows])
+    picked = [rows[int(np.argmin(np.abs(t - time)))] for time in times]
+    return [(float(row["time_s"]), abs(float(row["w_midspan_m"])),
+             float(row["D_damage_J"]) + float(row["D_contact_J"]), int(row["broken_links"])) for row in picked]
+
+
+def history_table(rows, times):
+    """A markdown table, one row per mesh size, of history_at at each time."""
+    head = " | ".join(f"{t * 1e3:g} ms: deflection (mm), dissipated (J), broken" for t in times)
+    lines = [f"| h (m) | {head} |", "|---:|" + "---|" * len(times)]
+    for size, folder in rows:
+        cells = " | ".join(f"{w * 1e3:.3f}, {d:.4g}, {b:,}" for _, w, d, b in history_at(folder, times))
+        lines.append(f"| {size:g} | {cells} |")
+    return "\n".join(lines)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("study", choices=sorted(STUDIES))
@@ -165,22 +186,27 @@ def main():
     parser.add_argument("--table-only", action="store_true", help="tabulate the runs already made, run nothing")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                         help="a further override of every run (give its own --out)")
+    parser.add_argument("--at", type=float, nargs="+", default=[], metavar="T",
+                        help="also tabulate deflection, dissipated energy and broken links at these times (s)")
     args = parser.parse_args()
     study = STUDIES[args.study]
     sizes, end = args.sizes or study["sizes"], args.end or study["end"]
     out = args.out / args.study
     for law in args.laws:
-        rows, ends = [], set()
+        rows, ends, folders = [], set(), []
         for size in sizes:
             folder = run_dir(out, law, size) if args.table_only else run(study["case"], law, size, end,
                                                                          args.ranks, out, args.set)
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
                 ends.add(run_end(folder))
+                folders.append((size, folder))
         ended = ", ".join(f"{e:g}" for e in sorted(ends)) if ends else f"{end:g}"
         print(f"\n### {study['case']}, interface.law = {law}, to {ended} s\n")
         print(table(rows, args.study == "panel"))
         print("\n" + verdict(rows), flush=True)
+        if args.at:
+            print("\n" + history_table(folders, args.at), flush=True)
 
 
 if __name__ == "__main__":
