@@ -57,6 +57,7 @@ def test_reduced_slab_gives_the_same_broken_links_fragments_and_energies_on_1_2_
         assert other["ranks"] == (2 if n == "random" else n)
         assert other["dt_s"] == pytest.approx(summary["dt_s"], rel=1e-12), n  # the bound's sums in another order
         assert other["mass_scaling"]["cells"] == summary["mass_scaling"]["cells"]
+        # the same cells' masses, summed over ranks in another order: round-off
         assert other["mass_scaling"]["added_mass_kg"] == pytest.approx(summary["mass_scaling"]["added_mass_kg"],
                                                                        rel=1e-12)
         assert other["broken_links"] == summary["broken_links"]
