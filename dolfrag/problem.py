@@ -15,7 +15,7 @@ from dolfrag import bulk, compat, guards, loads, mass_scaling, mesh, space as sp
 from dolfrag.case import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
-from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout
+from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout, stable_step as rebar_step
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
 from dolfrag.loads.stretch import end_components
@@ -143,14 +143,12 @@ def _rebars(case, domain, space, bulk_ops, comm):
 
 
 def _stable_step(case, bulk_ops, bars, space):
-    """dt_crit (s): the bulk's stable explicit step, lowered by the bars' stiffness (their
-    mass already in bulk_ops.m) and, under imex, by the viscosity's linear term. Collective."""
+    """dt_crit (s): the bulk's stable explicit step, with the bars' stiffness (their mass
+    already in bulk_ops.m) by time.bars_step, and under imex lowered by the viscosity's
+    linear term. Collective."""
     dt_crit = bulk_ops.dt_bulk
     if bars is not None:
-        # omega_max^2 <= bulk's + bars' (Weyl); the bulk's, with the lighter concrete-only
-        # mass, stays an upper bound
-        omega2_bars = bars.stiffness_bound(bulk_ops.m.x.array, space.V.dofmap.index_map)
-        dt_crit = 2 / math.sqrt((2 / dt_crit)**2 + omega2_bars)
+        dt_crit = rebar_step.stable_step(case.time.bars_step, bulk_ops, bars, space)
     if case.time.scheme == "imex" and viscosity.applies(case):
         dt_crit *= viscosity.step_factor()
     return dt_crit

@@ -55,6 +55,7 @@ BAD = {
     "unknown case": ("no-such-case", [], [], "no-such-case"),
     "Poisson 0.5": ("sound-bar", ["material.nu=0.5"], [], "material.nu"),
     "cfl above 1": ("sound-bar", ["time.cfl=2"], [], "time.cfl"),
+    "bars' step rule not a choice": ("wall-bending-clamped", ["time.bars_step=exact"], [], "time.bars_step"),
     "no end time": ("sound-bar", ["time.end=0"], [], "time.end"),
     "history every 0 steps": ("sound-bar", ["output.every=0"], [], "output.every"),
     "pulse shorter than its rise": ("sound-bar", ["load.duration=1e-6"], [], "load.duration"),

@@ -286,6 +286,11 @@ class Time:
     # imex: a cell whose stable step is below mass_scaling x mesh.size / c_p gets the mass
     # that brings it there (mass_scaling.py); none: off
     mass_scaling: float | None = _f("float", None, bounds="> 0, <= 1", when=("scheme", "imex"))
+    # how the bars' stiffness enters the stable step (rebar/stable_step.py): "coupled", the
+    # largest eigenvalue of the bulk and bars together; "weyl", the bulk's plus a bound of
+    # the bars' (shorter; the step of results made before "coupled"). Under theta it only
+    # sets the reported dt_crit_s
+    bars_step: str = _f("str", "coupled", choices=("coupled", "weyl"))
     # theta (Moreau-Jean, unconditionally stable): the step, default set by accuracy (the
     # load's shortest feature / 20), and theta (1/2 conserves energy, > 1/2 damps)
     dt: float | None = _f("float", None, bounds="> 0", unit="s", when=("scheme", "theta"))
