@@ -6,8 +6,9 @@ Estimates (measured on gmsh's meshes, dolfrag/cases at several sizes h): an unst
 triangle mesh has about 2.4 cells per h^2 of area (2.33-2.41), a structured one 2 per
 square, a tetrahedral one about 6 per h^3 of volume (5.7 on a 0.3 m x 0.3 m x 0.1 m slab
 at h = 0.03 m). The bulk's stable step is about 0.5 h / c_p in 2D (0.47-0.66) and
-0.16 h / c_p in 3D (c_p the P-wave speed); rebars shorten it further, so the step count
-is a lower bound.
+0.16 h / c_p in 3D (c_p the P-wave speed). The bars are left out: where they shorten the
+step (rebar/stable_step.py; the 2D bending walls by a fifth), the run takes more steps than
+the estimate.
 """
 import math
 import sys
