@@ -1,6 +1,9 @@
 """The explicit step with bars (time.bars_step, rebar/stable_step.py): the coupled
-eigenvalue is the whole system's, and it lies between the Weyl bound and the bulk's own.
-The same step on 1, 2 and 3 ranks and a random partition: tests/test_slab.py."""
+eigenvalue is the whole system's, and it lies between the Weyl bound and the bulk's own; a
+checkpoint from before the key resumes with the step it was made with. The same step on 1,
+2 and 3 ranks and a random partition: tests/test_slab.py."""
+import pickle
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -10,6 +13,7 @@ from scipy.sparse.linalg import eigsh
 from dolfrag import bulk
 from dolfrag.case import load_case
 from dolfrag.problem import Problem
+from dolfrag.runner import checkpoint
 
 CASES = {"2D wall": ("wall-bending-clamped", []),
          "3D slab": ("slab-3d-bending", ["geometry.length=0.4", "geometry.width=0.4", "mesh.size=0.04"])}
@@ -47,3 +51,14 @@ def test_coupled_step_is_the_whole_systems_and_lies_between_the_weyl_bound_and_t
     # measured: 1.28 and 1.23 times the Weyl step (the slab's is its bulk's own); a rule
     # that fell back to the bound would give 1
     assert coupled.dt_crit > 1.1 * weyl.dt_crit
+
+
+def test_a_checkpoint_from_before_the_rule_resumes_with_the_weyl_step_it_was_made_with(tmp_path):
+    case = load_case("wall-bending-clamped", [])
+    object.__delattr__(case.time, "bars_step")  # as a Case pickled before the key existed
+    (tmp_path / checkpoint.FOLDER).mkdir()
+    (tmp_path / checkpoint.FOLDER / checkpoint.CASE).write_bytes(pickle.dumps(case))
+    assert checkpoint.case_of(tmp_path).time.bars_step == "weyl"
+    fresh = load_case("wall-bending-clamped", [])
+    (tmp_path / checkpoint.FOLDER / checkpoint.CASE).write_bytes(pickle.dumps(fresh))
+    assert checkpoint.case_of(tmp_path) == fresh

@@ -7,6 +7,7 @@ object without one (a step solver) gives every array, number and list of objects
 attributes. Arrays are restored in place, so that views other objects hold stay valid.
 """
 import copy
+import dataclasses
 import os
 import pickle
 from pathlib import Path
@@ -133,7 +134,12 @@ def case_of(out):
     if not path.exists():
         raise CaseError(f"--resume {out}: no checkpoint in it ({path} is missing)")
     with open(path, "rb") as f:
-        return _Unpickler(f).load()
+        case = _Unpickler(f).load()
+    if "bars_step" not in vars(case.time):
+        # written before time.bars_step existed: stepped with the bars' "weyl" bound, which
+        # its resumed run keeps (the default would change its step)
+        case = dataclasses.replace(case, time=dataclasses.replace(case.time, bars_step="weyl"))
+    return case
 
 
 def load(out, comm):
