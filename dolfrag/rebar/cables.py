@@ -343,6 +343,12 @@ class Rebars:
         own = self._own
         return self._work + 0.5 * self._f_last @ (u_b[own] - u_a[own]) - self.dissipated
 
+    def stiffness_factors(self):
+        """S (n_counted, 2(d+1)): sqrt(E_s A / L) times the barycentric weights of each
+        counted segment, so that sum_j (E_s A / L)_j C_j^T C_j is sum_j S_j S_j^T on each axis
+        (the bound of the bars' tangent in every state, stiffness_bound)."""
+        return np.sqrt(self.E_s * self.area / self.L)[self.counted, None] * self.weights[self.counted]
+
     def stiffness_bound(self, m, index_map):
         """An upper bound (1/s^2) of the largest eigenvalue of M^-1 K_bars at any state,
         to add to the bulk's omega_max^2 (Weyl) for the explicit step. m: the lumped mass
@@ -355,7 +361,7 @@ class Rebars:
         they share, which may sit on different ranks: the matrix is formed on rank 0 from
         every rank's counted segments, so the bound does not depend on the partition."""
         first_axis = self.comps.reshape(len(self.L), 2 * (self.d + 1), self.d)[self.counted][:, :, 0]
-        S = np.sqrt(self.E_s * self.area / self.L)[self.counted, None] * self.weights[self.counted]
+        S = self.stiffness_factors()
         dofs = compat.global_indices(index_map, first_axis.ravel() // self.d)
         parts = self.comm.gather((dofs, S.ravel(), m[first_axis.ravel()]), root=0)
         bound = None

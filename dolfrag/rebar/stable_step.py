@@ -64,8 +64,7 @@ def coupled_omega2(bulk_ops, bars, space):
     to_global = lambda c: compat.global_indices(index_map, c.ravel() // d) * d + c.ravel() % d  # noqa: E731
     cells = np.arange(n_cells)[crossed]
     cell_comps = to_global(cells[:, None] * q + np.arange(q)).reshape(len(cells), q)
-    k = bars.E_s * bars.area / bars.L
-    S = (np.sqrt(k)[:, None] * bars.weights)[bars.counted]
+    S = bars.stiffness_factors()
     seg_comps = to_global(bars.comps[bars.counted]).reshape(-1, S.shape[1], d)
     parts = comm.gather((cell_comps, Ke[crossed], me[crossed], seg_comps, S), root=0)
     omega2 = None
