@@ -44,6 +44,7 @@ SOURCES = {
     "nu": "EN 1992-1-1 3.1.3(4): nu = 0.2 (uncracked)",
     "rho": "EN 1991-1-1 Table A.1: 2400 kg/m^3 (normal-weight concrete)",
     "G_F": "fib Model Code 2010 eq. 5.1-9: G_F = 73 f_cm^0.18 N/m",
+    "bond_tau_max": "fib Model Code 2010 Table 6.1-1: tau_bmax = 2.5 sqrt(f_cm) (pull-out, good bond)",
 }
 
 
@@ -83,6 +84,12 @@ def concrete(grade):
     f_cm = f_ck + 8.0
     return Concrete(grade, f_ck * 1e6, f_cm * 1e6, tensile_strength(f_ck, f_cm) * 1e6,
                     22e9 * (f_cm / 10) ** 0.3, POISSON, DENSITY, fracture_energy(f_cm))
+
+
+def bond_strength(f_cm):
+    """tau_bmax (Pa) of ribbed bars in concrete of mean compressive strength f_cm (Pa), pull-out
+    failure in good bond conditions: 2.5 sqrt(f_cm) MPa, fib Model Code 2010 Table 6.1-1."""
+    return 2.5e6 * math.sqrt(f_cm / 1e6)
 
 
 def tensile_dif(rate):

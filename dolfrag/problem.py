@@ -15,7 +15,7 @@ from dolfrag import bulk, compat, guards, loads, mass_scaling, mesh, space as sp
 from dolfrag.case import CaseError
 from dolfrag.interface import links as link_table, models, rate
 from dolfrag.interface.jumps import Jump
-from dolfrag.rebar import cables, faces as rebar_faces, layout as rebar_layout, stable_step as rebar_step
+from dolfrag.rebar import bond, cables, faces as rebar_faces, layout as rebar_layout, stable_step as rebar_step
 from dolfrag.interface.stars import Stars
 from dolfrag.loads.charge_load import ChargeLoad
 from dolfrag.loads.stretch import end_components
@@ -129,15 +129,19 @@ def _check_boundaries(case, domain):
 
 
 def _rebars(case, domain, space, bulk_ops, comm):
-    """The case's bars (None without rebar.faces); their mass joins the bulk's."""
+    """The case's bars (None without rebar.faces): perfectly bonded, their mass joins the
+    bulk's; with bond-slip (rebar.bond), their own nodes carry it."""
     if not case.rebar.faces:
         return None
     if case.geometry.kind == "file":
         lines, areas = rebar_faces.polylines(case.rebar, space, domain, comm)
     else:
         lines, areas = rebar_layout.layer_polylines(case.rebar, case.geometry, space.gdim)
-    bars = cables.Rebars(space, lines, areas, case.rebar.E, case.rebar.f_y, case.rebar.rho, case.mesh.size, comm,
-                        eps_u=case.rebar.eps_u)
+    r = case.rebar
+    if r.bond == "fib2010":
+        return bond.BondedBars(space, lines, areas, r.diameter, r.E, r.f_y, r.rho, case.mesh.size, comm,
+                               bond.BondLaw(tau_max=r.bond_tau_max, s3=r.bond_s3), eps_u=r.eps_u)
+    bars = cables.Rebars(space, lines, areas, r.E, r.f_y, r.rho, case.mesh.size, comm, eps_u=r.eps_u)
     bars.add_mass(bulk_ops.m.x.array)
     return bars
 

@@ -81,6 +81,12 @@ def _grade_defaults(raw: dict) -> dict[str, str]:
             if law and key in law.keys and key not in interface and not (key == "sigma_c" and "w" in interface):
                 interface[key] = getattr(values, field)
                 sources[f"interface.{key}"] = f"{values.grade}: {concrete.SOURCES[field]}"
+    rebar = raw.get("rebar")
+    if (isinstance(material, dict) and material.get("grade") in concrete.GRADES and isinstance(rebar, dict)
+            and rebar.get("bond") == "fib2010" and "bond_tau_max" not in rebar):
+        values = concrete.concrete(material["grade"])
+        rebar["bond_tau_max"] = concrete.bond_strength(values.f_cm)
+        sources["rebar.bond_tau_max"] = f"{values.grade}: {concrete.SOURCES['bond_tau_max']}"
     return sources
 
 

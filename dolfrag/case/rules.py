@@ -35,6 +35,7 @@ def _check(case: Case) -> None:
         raise CaseError(f"output.fragments_at = {_show(list(case.output.fragments_at))}: {late[0]!r} s is past "
                         f"time.end = {case.time.end!r} s; every time must be in [0, time.end]")
     _check_layers(case)
+    _check_bond(case)
     if load.boundary in case.supports.clamped:
         raise CaseError(f"supports.clamped = {_show(list(case.supports.clamped))}: {load.boundary!r} is the "
                         "load.boundary (the loaded boundary may not be clamped)")
@@ -119,6 +120,26 @@ def _check_layers(case: Case) -> None:
     if not bars.cover < thinnest / 2:
         raise CaseError(f"rebar.cover = {bars.cover!r}: must be < {thinnest / 2:g} m (half the body's "
                         "smallest extent), or the layers cross")
+
+
+def _check_bond(case: Case) -> None:
+    """Bond-slip (rebar/bond.py) has bars, a bond strength, the explicit step it is
+    integrated in, and a stable step that counts the bars' own nodes."""
+    bars = case.rebar
+    if bars.bond == "perfect":
+        return
+    where = f"rebar.bond = {bars.bond!r}:"
+    if not bars.faces:
+        raise CaseError(f"{where} only allowed when rebar.faces is given (a list of faces to lay bars along)")
+    if case.time.scheme != "imex":
+        raise CaseError(f"{where} needs time.scheme = 'imex' (the bars' own nodes are integrated explicitly); "
+                        f"time.scheme = {case.time.scheme!r}")
+    if case.time.bars_step != "coupled":
+        raise CaseError(f"{where} needs time.bars_step = 'coupled' (the step with the bars' own nodes); "
+                        f"time.bars_step = {case.time.bars_step!r}")
+    if bars.bond_tau_max is None and case.material.grade is None:
+        raise CaseError("rebar.bond_tau_max: missing (required when rebar.bond is 'fib2010' and material.grade "
+                        "is not given: the default is 2.5 sqrt(f_cm) of the grade), Pa")
 
 
 BUILT_GROUP = "concrete"  # the material group of every cell of a generated rectangle or box (mesh.py)

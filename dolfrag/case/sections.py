@@ -275,6 +275,14 @@ class Rebar:
     # rupture strain, total engineering strain (B500: A_gt >= 0.05); none: never ruptures
     eps_u: float | None = _f("float", None, bounds="> 0", unit="-")
     rho: float = _f("float", 7850.0, bounds="> 0", unit="kg/m^3")
+    # "perfect": each bar point moves with the cell it lies in; "fib2010": the bars have nodes
+    # of their own and slip along the concrete by the fib Model Code 2010 bond-slip law
+    # (pull-out, good bond; rebar/bond.py), imex only
+    bond: str = _f("str", "perfect", choices=("perfect", "fib2010"))
+    # fib2010: the bond strength (none: 2.5 sqrt(f_cm) of material.grade) and s3, the clear
+    # rib spacing, where the bond has fallen to its residual 0.4 tau_max
+    bond_tau_max: float | None = _f("float", None, bounds="> 0", unit="Pa", when=("bond", "fib2010"))
+    bond_s3: float | None = _f("float", 0.01, bounds="> 0.002", unit="m", when=("bond", "fib2010"))
 
 
 @dataclass(frozen=True)

@@ -67,7 +67,7 @@ def broken_mesh_png(space, u, values, path, label, title, scale=None, cell_offse
     if scale is None:
         scale = 0.02 * size / umax if umax > 0 else 1.0
     data = _gather_broken_mesh(space, scale * u.x.array, values, cell_offset, cells)
-    bars = None if rebars is None else _gather_bars(rebars, scale * u.x.array, cells, comm)
+    bars = None if rebars is None else _gather_bars(rebars, u.x.array, scale, cells, comm)
     if data is None:
         return None
     try:
@@ -117,13 +117,13 @@ def broken_mesh_png(space, u, values, path, label, title, scale=None, cell_offse
     return drawn
 
 
-def _gather_bars(rebars, u, cells, comm):
-    """The rebar segments each rank counts (those in ``cells``, if given) at displacement u,
-    (n, 2, d) m, gathered on rank 0 (None elsewhere)."""
+def _gather_bars(rebars, u, scale, cells, comm):
+    """The rebar segments each rank counts (those in ``cells``, if given) at displacement u
+    magnified ``scale`` times, (n, 2, d) m, gathered on rank 0 (None elsewhere)."""
     keep = rebars.counted.copy()
     if cells is not None:
         keep[keep] = np.asarray(cells, bool)[rebars.cell_a[keep]]
-    gathered = comm.gather(rebars.segments(u)[keep], root=0)
+    gathered = comm.gather(rebars.segments(u, scale)[keep], root=0)
     return None if gathered is None else np.concatenate(gathered)
 
 

@@ -222,11 +222,11 @@ class Rebars:
         the elastic energy released by ruptures."""
         return self.plastic_work + self.rupture_work
 
-    def segments(self, u):
+    def segments(self, u, scale=1.0):
         """The two ends (n, 2, d) (m) of every local segment at displacement u (all local
-        components, m): each node moved with its cell."""
+        components, m) magnified ``scale`` times: each node moved with its cell."""
         n, k = len(self.L), self.d + 1
-        U = u[self.comps].reshape(n, 2 * k, self.d)
+        U = scale * u[self.comps].reshape(n, 2 * k, self.d)
         start = self.x_a - np.einsum("jc,jci->ji", self.weights[:, :k], U[:, :k])  # weights of a are -lambda
         end = self.x_a + self.chord0 + np.einsum("jc,jci->ji", self.weights[:, k:], U[:, k:])
         return np.stack([start, end], axis=1)
@@ -342,6 +342,21 @@ class Rebars:
         O(h^2) of elastic_energy."""
         own = self._own
         return self._work + 0.5 * self._f_last @ (u_b[own] - u_a[own]) - self.dissipated
+
+    kinetic_energy = 0.0  # J: the bars' mass is the bulk's (add_mass)
+
+    def explicit_step(self, u, h):
+        """The explicit step's forces on the bulk at u (``forces``, committed; h, s, is not
+        needed: the bars move with the bulk)."""
+        return self.forces(u, commit=True)[0]
+
+    def spring_terms(self, to_global, n_concrete):
+        """The bars' springs for the stable step (stable_step.coupled_omega2): the counted
+        segments' global components (s, 2(d+1), d) and factors (stiffness_factors), and no
+        nodes of their own (empty ids and masses; n_concrete unused)."""
+        S = self.stiffness_factors()
+        comps = to_global(self.comps[self.counted]).reshape(-1, S.shape[1], self.d)
+        return comps, S, np.empty(0, np.int64), np.empty(0)
 
     def stiffness_factors(self):
         """S (n_counted, 2(d+1)): sqrt(E_s A / L) times the barycentric weights of each

@@ -115,10 +115,11 @@ class Nodes:
     cell: np.ndarray
 
 
-def nodes(space, lines, size, comm):
-    """Sample the bars, decide each sample's cell over all ranks, and merge runs of
-    samples in one cell into nodes. Collective."""
-    bar, arc, points, ds = _sample(lines, size / SAMPLES)
+def nodes(space, lines, size, comm, samples=SAMPLES, merge=True):
+    """Sample the bars every ``size / samples`` (m), decide each sample's cell over all
+    ranks, and (``merge``) merge runs of samples in one cell into nodes; without it every
+    sample is a node. Collective."""
+    bar, arc, points, ds = _sample(lines, size / samples)
     cell, score, centroid = _locate(space, points, size)
     # every rank's best guess; the winner is decided by geometry alone, as on one rank
     scores = np.array(comm.allgather(score))
@@ -134,7 +135,7 @@ def nodes(space, lines, size, comm):
     local = np.all(np.abs(centroid - winning_centroid) < 1e-9 * size, axis=1)
     # runs: consecutive samples of one bar in the same cell (one centroid)
     new_run = np.r_[True, (bar[1:] != bar[:-1]) |
-                    np.any(winning_centroid[1:] != winning_centroid[:-1], axis=1)]
+                    np.any(winning_centroid[1:] != winning_centroid[:-1], axis=1) | (not merge)]
     run = np.cumsum(new_run) - 1
     count = np.bincount(run)
     mean = lambda a: np.bincount(run, weights=a) / count  # noqa: E731

@@ -15,6 +15,9 @@ for the whole run. Two ways to use it:
   12 x 12 (6 x 6 in 2D) problem's. The cells the bars cross are coupled by them: that sparse
   problem is gathered on rank 0 by global component numbers, so its answer does not depend on
   the partition, and solved by Lanczos (scipy's eigsh) from a constant start vector.
+  With bond-slip (rebar/bond.py) the bars' nodes are unknowns of their own, with their mass:
+  the operator gains their components, the cables between them (k_j = E_s A / L) and the
+  bond springs to their cells (k_0 p l, the bond's largest tangent), in the same problem.
 * ``"weyl"``: omega_bulk^2 + a Gershgorin bound of M^-1 K_bar (Rebars.stiffness_bound):
   Weyl's inequality for a sum. Cheaper to form, and 1.06-1.48 times shorter than "coupled"
   on the built-in reinforced cases, where the bound adds the stiffest bar segment's
@@ -64,36 +67,38 @@ def coupled_omega2(bulk_ops, bars, space):
     to_global = lambda c: compat.global_indices(index_map, c.ravel() // d) * d + c.ravel() % d  # noqa: E731
     cells = np.arange(n_cells)[crossed]
     cell_comps = to_global(cells[:, None] * q + np.arange(q)).reshape(len(cells), q)
-    S = bars.stiffness_factors()
-    seg_comps = to_global(bars.comps[bars.counted]).reshape(-1, S.shape[1], d)
-    parts = comm.gather((cell_comps, Ke[crossed], me[crossed], seg_comps, S), root=0)
+    springs = bars.spring_terms(to_global, index_map.size_global * d)
+    parts = comm.gather((cell_comps, Ke[crossed], me[crossed], *springs), root=0)
     omega2 = None
     if comm.rank == 0:
         omega2 = max(omega2_alone, _largest(*(np.concatenate(p) for p in zip(*parts))))
     return comm.bcast(omega2, root=0)
 
 
-def _largest(cell_comps, Ke, me, seg_comps, S):
+def _largest(cell_comps, Ke, me, spring_comps, S, node_ids, node_m):
     """lambda_max(M^-1 (K_bulk + K_bar)) of the crossed cells (global component numbers
-    cell_comps (n, q), blocks Ke (n, q, q) N/m, masses me (n, q) kg) and the bar segments
-    (seg_comps (s, 2(d+1), d) of their cells' vertices, S = sqrt(k_j) times the barycentric
-    weights (s, 2(d+1)): K_bar = sum_j S_j S_j^T on each axis)."""
+    cell_comps (n, q), blocks Ke (n, q, q) N/m, masses me (n, q) kg), the bars' springs
+    (spring_comps (s, v, d) global components, S (s, v) factors: K_bar = sum_j S_j S_j^T on
+    each axis; for perfect bond sqrt(k_j) times the barycentric weights of a segment's cell
+    vertices) and the bars' own nodes when they have them (node_ids, masses node_m kg:
+    rebar/bond.py)."""
     if len(cell_comps) == 0:
         return 0.0
-    ids, index = np.unique(cell_comps, return_inverse=True)
-    index = index.reshape(cell_comps.shape)
+    ids = np.concatenate([np.unique(cell_comps), np.sort(node_ids)])
+    index = np.searchsorted(ids, cell_comps)
     n, q = len(ids), cell_comps.shape[1]
     K = sp.csr_matrix((Ke.ravel(), (np.repeat(index, q, axis=1).ravel(), np.tile(index, (1, q)).ravel())),
                       shape=(n, n))
-    s, v, d = seg_comps.shape
-    cols = np.searchsorted(ids, seg_comps)
-    if np.any(ids[np.minimum(cols, n - 1)] != seg_comps):
-        raise RuntimeError("a bar segment ties a component of no crossed cell")
+    s, v, d = spring_comps.shape
+    cols = np.searchsorted(ids, spring_comps)
+    if np.any(ids[np.minimum(cols, n - 1)] != spring_comps):
+        raise RuntimeError("a bar ties a component of no crossed cell")
     rows = np.broadcast_to(np.arange(s)[:, None, None] * d + np.arange(d), (s, v, d))
     C = sp.csr_matrix((np.broadcast_to(S[:, :, None], (s, v, d)).ravel(), (rows.ravel(), cols.ravel())),
                       shape=(s * d, n))
     m = np.zeros(n)
     m[index.ravel()] = me.ravel()
+    m[np.searchsorted(ids, node_ids)] = node_m
     scale = sp.diags(1 / np.sqrt(m))
     A = scale @ (K + C.T @ C) @ scale
     if n <= DENSE:

@@ -94,3 +94,5 @@ class RebarForce(Observer):
                             "plastic_work_J": comm.allreduce(bars.plastic_work),
                             "ruptured_segments": bars.ruptures, "rupture_energy_J": comm.allreduce(bars.rupture_work),
                             "units": "N, J and kg per metre of depth in 2D"}
+        if hasattr(bars, "bond_work"):  # bond-slip (rebar/bond.py): the plastic slip's work
+            summary["rebar"]["bond_slip_work_J"] = comm.allreduce(bars.bond_work)

@@ -69,9 +69,9 @@ class Imex:
     step solver (ElasticSprings or semismooth.StarNewton) and its model; load: Function of
     nodal forces per pascal, times pressure p(t) (Pa), or a load applied per facet
     (loads.charge_load.ChargeLoad; pressure then its mean, for the history); h: time step
-    (s); rebars: rebar/cables.Rebars
-    or None. The bars are explicit, like the bulk: their forces need every ghost
-    displacement, so with bars each step ends with a forward scatter of u. viscosity:
+    (s); rebars: rebar/cables.Rebars, rebar/bond.BondedBars or None. The bars are
+    explicit, like the bulk: their forces need every ghost displacement, so with bars each
+    step ends with a forward scatter of u. viscosity:
     viscosity.BulkViscosity or None, explicit too (its forces from v_{n-1/2}). strength:
     interface/rate.RateStrength or None: the links' strengths at the bulk strain rate of
     v_{n-1/2}, set before each interface solve.
@@ -184,7 +184,7 @@ class Imex:
         if self.rebars is not None:
             if energies:  # u_n, for the bars' energy at the end of the step
                 np.copyto(self._u_n, u)
-            f[own] += self.rebars.forces(u, commit=True)[0][own]
+            f[own] += self.rebars.explicit_step(u, h)[own]
         f[own][self.load.rows] += load
         if self.viscosity is not None:
             self.viscosity.add_force(v, f)
@@ -246,7 +246,8 @@ class Imex:
         v, u = self.v.x.array[own], self.u.x.array[own]
         weight = self.jump.links.weight
         bars = self.rebars
-        return global_energies(self.space.mesh.comm, 0.5 * self.m[own] @ v**2, 0.5 * u @ Ku,
+        kinetic = 0.5 * self.m[own] @ v**2 + (bars.kinetic_energy if bars else 0.0)
+        return global_energies(self.space.mesh.comm, kinetic, 0.5 * u @ Ku,
                                weight @ self.model.stored_energy(*self.jump.local(g_mid)),
                                weight @ self.model.dissipated(), self.interface.contact_dissipated, self.work,
                                np.count_nonzero(self.model.broken()),
