@@ -28,11 +28,15 @@ def test_envelope_is_fib2010_on_each_branch_and_continuous():
     assert tau == pytest.approx(2.5e6 * math.sqrt(38))  # Table 6.1-1, pull-out, good bond
     s = np.array([0.5e-3, 1.5e-3, 2e-3 + 0.5 * (0.01 - 2e-3), 0.02])
     expected = [tau * 0.5**0.4, tau, tau * (1 - 0.6 * 0.5), 0.4 * tau]
+    # the same formulas evaluated two ways: round-off
     assert envelope(LAW, s) == pytest.approx(expected, rel=1e-14)
     assert envelope(LAW, -s) == pytest.approx(expected, rel=1e-14)  # symmetric in the slip's sign
-    for joint in (LAW.s1, LAW.s2, LAW.s3):  # both sides of each joint: no jump
+    # both sides of each joint, 2e-12 of it apart: the slopes move the stress by ~1e-11 of
+    # itself, a jump would by its own size
+    for joint in (LAW.s1, LAW.s2, LAW.s3):
         assert envelope(LAW, joint * (1 - 1e-12)) == pytest.approx(envelope(LAW, joint * (1 + 1e-12)), rel=1e-9)
-    # the elastic line meets the envelope at elastic_slip and lies under it before
+    # the elastic line meets the envelope at elastic_slip (k_0 is its secant there: round-off)
+    # and lies under it before
     assert LAW.k_0 * LAW.elastic_slip == pytest.approx(envelope(LAW, LAW.elastic_slip), rel=1e-14)
     s_small = np.linspace(1e-8, LAW.elastic_slip, 50)
     assert np.all(LAW.k_0 * s_small <= envelope(LAW, s_small) * (1 + 1e-12))
@@ -67,7 +71,8 @@ def test_return_map_follows_the_envelope_unloads_elastically_and_dissipates_what
     taus, work, dissipated = walk(s[:, None])
     taus = taus[:, 0]
     loading = (s >= LAW.elastic_slip) & (np.arange(len(s)) <= 800)
-    # monotone slip beyond the elastic line: on the envelope (its slope there is below k_0)
+    # monotone slip beyond the elastic line: on the envelope (its slope there is below k_0),
+    # the return map's clip giving the envelope's own value: round-off
     assert taus[loading] == pytest.approx(envelope(LAW, s[loading]), rel=1e-12)
     # first unloading steps from 4 mm: elastic, slope k_0
     assert (taus[801] - taus[800]) / (s[801] - s[800]) == pytest.approx(LAW.k_0, rel=1e-12)

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from dolfrag.rebar.cables import _accept, _book_work
+from dolfrag.rebar.cables import _accept, _book_work, chord_strain
 from dolfrag.rebar.layout import barycentric, nodes
 
 
@@ -249,10 +249,7 @@ class BondedBars:
     def _cables(self, f_s):
         """The cables' forces between nodes into f_s; their state accepted."""
         a, b = self.a, self.b
-        dc = self.u_s[b] - self.u_s[a]
-        c = self.chord0 + dc
-        ell = np.linalg.norm(c, axis=1)
-        eps = np.einsum("ji,ji->j", 2 * self.chord0 + dc, dc) / (ell + self.L) / self.L  # as cables.strain
+        eps, c, ell = chord_strain(self.chord0, self.u_s[b] - self.u_s[a], self.L)
         N, eps_p = bar_force(eps, self.eps_p, self.E_s, self.area, self.f_y)
         N = np.where(self.ruptured, 0.0, N)
         pull = N[:, None] * c / ell[:, None]

@@ -74,6 +74,18 @@ def cable_force(eps, eps_p, E_s, area, f_y=np.inf):
     return area * sigma, eps_p_new, k
 
 
+def chord_strain(chord0, dc, L):
+    """Engineering strain |c| / L - 1 (-) of chords c = chord0 + dc (m, (n, d)) of reference
+    length L (m), and c and |c| (m). Vectorised."""
+    c = chord0 + dc
+    ell = np.linalg.norm(c, axis=1)
+    # |c| - L = (2 c0.dc + dc.dc) / (|c| + L): no cancellation, so a strain of 1e-12
+    # keeps its own relative precision (|c| / L - 1 would carry 1e-16 absolute noise,
+    # the whole force of the first steps of a slow load)
+    stretch = np.einsum("ji,ji->j", 2 * chord0 + dc, dc) / (ell + L)
+    return stretch / L, c, ell
+
+
 def _ramp_mean(p, q, a):
     """Mean of max(s - a, 0) over s in [p, q] (either order), and its derivative in q.
     Straddling a kink the mean is (top - a)^2 / (2 |q - p|), with |q - p| >= top - a: no
@@ -245,14 +257,7 @@ class Rebars:
     def strain(self, u):
         """Engineering strain |c| / L - 1 (-) of every local segment at displacement u (m),
         and the chords c (n, d) and their lengths |c| (m)."""
-        dc = (self.C @ u).reshape(-1, self.d)
-        c = self.chord0 + dc
-        ell = np.linalg.norm(c, axis=1)
-        # |c| - L = (2 c0.dc + dc.dc) / (|c| + L): no cancellation, so a strain of 1e-12
-        # keeps its own relative precision (|c| / L - 1 would carry 1e-16 absolute noise,
-        # the whole force of the first steps of a slow load)
-        stretch = np.einsum("ji,ji->j", 2 * self.chord0 + dc, dc) / (ell + self.L)
-        return stretch / self.L, c, ell
+        return chord_strain(self.chord0, (self.C @ u).reshape(-1, self.d), self.L)
 
     def state(self, u):
         """CableState of the local segments at displacement u (all local components, m),
