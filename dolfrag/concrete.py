@@ -13,6 +13,16 @@ returns):
 Fracture energy, fib Model Code 2010 eq. 5.1-9: G_F = 73 f_cm^0.18 N/m (f_cm in MPa).
 Density 2,400 kg/m^3 (EN 1991-1-1 Table A.1, plain normal-weight concrete).
 
+Strength under compression, for the intact links of linear softening (Mohr-Coulomb with a
+tension cut-off at f_ctm): internal friction mu_i = tan 37 deg = 0.75, the friction angle of
+Richart, Brandtzaeg & Brown's (1928) confinement coefficient 4.1 = (1 + sin phi)/(1 - sin
+phi), and the shear strength at zero pressure
+
+    tau_c = f_cm (sqrt(1 + mu_i^2) - mu_i) / 2,
+
+at which the best-oriented facet of a body under uniaxial compression slips when the
+compression reaches f_cm.
+
 Tensile dynamic increase factor, fib Model Code 2010 eqs. 5.1-108/109, with
 eps0 = 1e-6 1/s:
 
@@ -29,6 +39,7 @@ import numpy as np
 DENSITY = 2400.0  # kg/m^3
 POISSON = 0.2
 RATE_0 = 1e-6  # 1/s, fib Model Code 2010 reference strain rate in tension
+INTERNAL_FRICTION = 0.75  # -, tan 37 deg
 RATE_KNEE = 10.0  # 1/s, where the tensile DIF turns to the cube-root branch
 
 # f_ck (MPa) of the classes of EN 1992-1-1 Table 3.1, by name f_ck/f_ck,cube
@@ -44,6 +55,9 @@ SOURCES = {
     "nu": "EN 1992-1-1 3.1.3(4): nu = 0.2 (uncracked)",
     "rho": "EN 1991-1-1 Table A.1: 2400 kg/m^3 (normal-weight concrete)",
     "G_F": "fib Model Code 2010 eq. 5.1-9: G_F = 73 f_cm^0.18 N/m",
+    "mu_i": "tan 37 deg: the confinement coefficient 4.1 = (1 + sin phi)/(1 - sin phi) of Richart, "
+            "Brandtzaeg & Brown 1928",
+    "tau_c": "Mohr-Coulomb through f_cm: tau_c = f_cm (sqrt(1 + mu_i^2) - mu_i) / 2",
     "bond_tau_max": "fib Model Code 2010 Table 6.1-1: tau_bmax = 2.5 sqrt(f_cm) (pull-out, good bond)",
 }
 
@@ -84,6 +98,15 @@ def concrete(grade):
     f_cm = f_ck + 8.0
     return Concrete(grade, f_ck * 1e6, f_cm * 1e6, tensile_strength(f_ck, f_cm) * 1e6,
                     22e9 * (f_cm / 10) ** 0.3, POISSON, DENSITY, fracture_energy(f_cm))
+
+
+def shear_strength(f_cm, mu_i):
+    """tau_c (Pa): the shear strength at zero pressure of a facet with internal friction mu_i
+    (-) whose best-oriented copy, in a body under uniaxial compression, slips at f_cm (Pa).
+    A facet at angle theta to the compression sigma carries the shear sigma sin cos and the
+    pressure sigma sin^2; the largest of sin cos - mu_i sin^2 over theta is
+    (sqrt(1 + mu_i^2) - mu_i) / 2."""
+    return f_cm * (math.sqrt(1 + mu_i**2) - mu_i) / 2
 
 
 def bond_strength(f_cm):

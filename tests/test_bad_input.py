@@ -71,6 +71,7 @@ BAD = {
                                         "rebar.bond_s3"),
     "bond strength with perfect bond": ("wall-bending-simple", ["rebar.bond_tau_max=1e7"], [],
                                         "rebar.bond_tau_max"),
+    "intact shear cone without radius": ("compression-block", ["interface.tau_c=1e6"], [], "interface.tau_c"),
     "no end time": ("sound-bar", ["time.end=0"], [], "time.end"),
     "history every 0 steps": ("sound-bar", ["output.every=0"], [], "output.every"),
     "pulse shorter than its rise": ("sound-bar", ["load.duration=1e-6"], [], "load.duration"),

@@ -55,7 +55,10 @@ def test_grade_fills_the_material_and_the_strengths_and_says_where_from():
     c40 = concrete.concrete("C40/50")
     assert (case.material.E, case.material.nu, case.material.rho) == (c40.E, 0.2, 2400.0)
     assert (case.interface.sigma_c, case.interface.G_c) == (c40.f_ctm, c40.G_F)
-    assert set(case.sources) == {"material.E", "material.rho", "interface.sigma_c", "interface.G_c"}
+    # and linear softening's compressive cone (tests/test_compression.py)
+    assert set(case.sources) == {"material.E", "material.rho", "interface.sigma_c", "interface.G_c",
+                                 "interface.mu_i", "interface.tau_c"}
+    assert case.interface.tau_c == concrete.shear_strength(c40.f_cm, 0.75)
     assert "fib Model Code 2010" in case.sources["interface.G_c"]
     # an explicit key overrides its class value; nu given in the file stays
     explicit = load_case("expanding-bar", ["material.grade=C40/50", "interface.sigma_c=5e6"])

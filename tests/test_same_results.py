@@ -51,6 +51,8 @@ CASES = {
     "bunker-two-rooms": ("bunker-two-rooms", ["mesh.size=0.2", "time.end=2e-4", "output.fields=0",
                                               "output.figures=false"]),
     "bunker-wall-panel": ("bunker-wall-panel", ["time.end=2e-4", "output.fields=0", "output.figures=false"]),
+    "compression-block": ("compression-block", ["mesh.size=0.01", "time.end=2e-3", "output.fields=0",
+                                                "output.figures=false"]),
     "two-material-bar": ("two-material-bar", ["time.end=20e-6", "output.fields=0", "output.figures=false"]),
     "demo slab_3d": (str(ROOT / "tests" / "cases" / "slab-ramp.toml"),
                      ["mesh.size=0.05", "time.end=1e-3", "output.fields=0", "output.figures=false"]),

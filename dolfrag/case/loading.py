@@ -81,12 +81,28 @@ def _grade_defaults(raw: dict) -> dict[str, str]:
             if law and key in law.keys and key not in interface and not (key == "sigma_c" and "w" in interface):
                 interface[key] = getattr(values, field)
                 sources[f"interface.{key}"] = f"{values.grade}: {concrete.SOURCES[field]}"
+        if law and "tau_c" in law.keys:
+            sources.update(_compressive_defaults(interface, values))
     rebar = raw.get("rebar")
     if (isinstance(material, dict) and material.get("grade") in concrete.GRADES and isinstance(rebar, dict)
             and rebar.get("bond") == "fib2010" and "bond_tau_max" not in rebar):
         values = concrete.concrete(material["grade"])
         rebar["bond_tau_max"] = concrete.bond_strength(values.f_cm)
         sources["rebar.bond_tau_max"] = f"{values.grade}: {concrete.SOURCES['bond_tau_max']}"
+    return sources
+
+
+def _compressive_defaults(interface: dict, values: concrete.Concrete) -> dict[str, str]:
+    """A class's strength under compression for linear softening's intact links, mu_i and
+    tau_c, where the case leaves them out; {dotted key: source} of what was filled."""
+    sources = {}
+    if "mu_i" not in interface:
+        interface["mu_i"] = concrete.INTERNAL_FRICTION
+        sources["interface.mu_i"] = concrete.SOURCES["mu_i"]
+    mu_i = interface["mu_i"]
+    if "tau_c" not in interface and isinstance(mu_i, (int, float)) and mu_i >= 0:
+        interface["tau_c"] = concrete.shear_strength(values.f_cm, mu_i)
+        sources["interface.tau_c"] = f"{values.grade}: {concrete.SOURCES['tau_c']}"
     return sources
 
 

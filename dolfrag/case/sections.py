@@ -132,9 +132,14 @@ class Interface:
     # Coulomb friction; rccm: mu (1 - beta) acts; threshold, linear_softening: on the cone
     # shifted by the cohesion while the link holds
     mu: float | None = _f("float", 0.0, bounds=">= 0", when=partial(owning, "mu"))
-    # rccm, rccm_decoupled: internal friction of the intact material; shear drives damage
-    # only above mu_i times the contact pressure (Mohr-Coulomb type; 0: the reference paper's law)
-    mu_i: float | None = _f("float", 0.0, bounds=">= 0", when=partial(owning, "mu_i"))
+    # internal friction of the intact material (Mohr-Coulomb type). rccm, rccm_decoupled: shear
+    # drives damage only above mu_i times the contact pressure (not given: 0, the reference
+    # paper's law); linear_softening: the intact link's shear strength is mu_i r_N + tau_c under
+    # the pressure r_N (not given: mu, the Camacho-Ortiz cone; with a grade: 0.75)
+    mu_i: float | None = _f("float", None, bounds=">= 0", when=partial(owning, "mu_i"))
+    # linear_softening: the intact link's shear strength at zero pressure (not given: (1 + mu_i)
+    # sigma_c, the Camacho-Ortiz cone; with a grade: from f_cm, docs/materials.md)
+    tau_c: float | None = _f("float", None, bounds="> 0", unit="Pa", when=partial(owning, "tau_c"))
     # strength at the strain rate of the bulk beside each link (interface/rate.py):
     # "fib2010" sigma_c x the fib Model Code 2010 tensile factor, "none" sigma_c alone
     rate_effect: str | None = _f("str", "none", choices=RATE_EFFECTS, when=partial(owning, "rate_effect"))

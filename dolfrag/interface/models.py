@@ -336,10 +336,17 @@ class Threshold(_Rigid):
 
 class LinearSoftening(_Rigid):
     """Linear softening (laws.linear_softening, Camacho-Ortiz / Akantu): rigid until the
-    link opens, with tension up to sigma_c (Pa) and shear up to sigma_c beta_ratio^-1
-    (the shifted cone of interface/contact.py); then secant springs S(delta_max) that
+    link opens, with tension up to sigma_c (Pa) and shear up to a Mohr-Coulomb cone (the
+    shifted cone of interface/contact.py); then secant springs S(delta_max) that
     soften linearly to zero at delta_c = 2 G_c / sigma_c (G_c J/m^2) and unload to the
     origin; Coulomb friction mu.
+
+    The intact link's cone: |r_T| <= mu_i r_N + tau_c under the contact pressure r_N (Pa),
+    mu_i (-) its internal friction and tau_c (Pa) its shear strength at zero pressure, both
+    softened with the tensile strength. Without mu_i and tau_c it is Camacho-Ortiz's cone
+    mu (r_N + sigma_c) + sigma_c / beta_ratio, whose uniaxial compressive strength is only a
+    few sigma_c (docs/method.md, "The intact link under compression"). The cone's radius at
+    the tension cut-off r_N = -sigma_c, tau_c - mu_i sigma_c, must not be negative.
 
     An opened link keeps its rigid constraint, with the strength softened along the law,
     sigma_c (1 - delta_max / delta_c), until its secant drops to k_open (Pa/m, scalar or
@@ -368,9 +375,13 @@ class LinearSoftening(_Rigid):
     # what a checkpoint keeps (the strengths with what follows from them)
     STATE = ("work", "released", "delta_max", "sprung", "sigma_c", "_delta_c", "_delta_open")
 
-    def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf):
+    def __init__(self, n_links, sigma_c, G_c, mu=0.0, beta_ratio=1.0, kappa=1.0, k_open=np.inf, mu_i=None,
+                 tau_c=None):
         super().__init__(n_links, mu)
         self.G_c, self.beta_ratio, self.kappa = G_c, beta_ratio, kappa
+        # the intact cone mu_i (r_N + shift) + c shift, shift = sigma_c x softening: c = tau_c / sigma_c - mu_i
+        self.mu_i = mu if mu_i is None else mu_i
+        self.cohesion_ratio = 1 / beta_ratio if tau_c is None else tau_c / sigma_c - self.mu_i
         self.k_open = np.broadcast_to(np.asarray(k_open, dtype=float), (n_links,))
         self.a_T = beta_ratio**2 / kappa  # the law's shear weight on the traction
         self.delta_max = np.zeros(n_links)
@@ -412,7 +423,11 @@ class LinearSoftening(_Rigid):
         return np.where(state > 0, 0.0, self.sigma_c[links] * np.maximum(1 + state / self.delta_c(links), 0.0))
 
     def shear_cohesion(self, state, links=slice(None)):
-        return self.shift(state, links) / self.beta_ratio
+        return self.shift(state, links) * self.cohesion_ratio
+
+    def friction(self, state, links=None):
+        """mu_i on the links still rigid (state <= 0), mu on those on their springs."""
+        return np.where(np.asarray(state) > 0, float(self.mu), float(self.mu_i))
 
     def secant(self, state, links=slice(None)):
         """S(delta_max) (Pa/m): the traction factor of the law, 0 while rigid or broken."""
@@ -484,6 +499,20 @@ def _strength_rule(interface, C_N):
     return None
 
 
+def _softening_rules(interface, C_N):
+    """linear_softening's sigma_c, and an intact cone whose radius at the tension cut-off,
+    tau_c - mu_i sigma_c, is not negative."""
+    missing = _strength_rule(interface, C_N)
+    if missing or interface.tau_c is None:
+        return missing
+    mu_i = interface.mu if interface.mu_i is None else interface.mu_i
+    if interface.tau_c >= mu_i * interface.sigma_c:
+        return None
+    return (f"interface.tau_c = {interface.tau_c!r}: linear_softening needs tau_c >= mu_i sigma_c = "
+            f"{mu_i * interface.sigma_c:.6g} Pa (mu_i = {mu_i!r}, sigma_c = {interface.sigma_c!r} Pa), "
+            "so that the intact shear cone keeps a radius at the tension cut-off")
+
+
 def _decoupled_rules(interface, C_N):
     """rccm_decoupled's sigma_c, and springs C_N (Pa/m) stiff enough that the elastic energy at
     the peak, sigma_c^2 / (2 C_N), stays below G_c (J/m^2): the softening branch needs the rest."""
@@ -535,16 +564,18 @@ class Law:
 LAWS = {
     "elastic": Law(build=lambda i, n, C_N, C_T, h, k: Elastic(n, C_N, C_T),
                    breakable=False, springs=True, theta=True),
-    "rccm": Law(build=lambda i, n, C_N, C_T, h, k: Rccm(n, C_N, C_T, i.adhesion_energy(C_N), i.b, i.mu, h, i.mu_i),
+    "rccm": Law(build=lambda i, n, C_N, C_T, h, k: Rccm(n, C_N, C_T, i.adhesion_energy(C_N), i.b, i.mu, h,
+                                                        i.mu_i or 0.0),
                 keys=("sigma_c", "w", "b", "mu", "mu_i"), rules=_rccm_rules, breakable=True, theta=True),
     "rccm_decoupled": Law(build=lambda i, n, C_N, C_T, h, k: RccmDecoupled(n, C_N, C_T, i.sigma_c, i.G_c, i.mu,
-                                                                           i.mu_i),
+                                                                           i.mu_i or 0.0),
                           keys=("sigma_c", "G_c", "mu", "mu_i"), rules=_decoupled_rules, breakable=True, theta=True),
     "threshold": Law(build=lambda i, n, C_N, C_T, h, k: Threshold(n, i.R_c, i.W_eth, i.mu),
                      keys=("R_c", "W_eth", "mu"), breakable=True, rigid=True, theta=False),
-    "linear_softening": Law(build=lambda i, n, C_N, C_T, h, k: LinearSoftening(n, i.sigma_c, i.G_c, i.mu, k_open=k),
-                            keys=("sigma_c", "G_c", "mu", "rate_effect"), rules=_strength_rule, breakable=True,
-                            rigid=True, theta=False),
+    "linear_softening": Law(build=lambda i, n, C_N, C_T, h, k: LinearSoftening(n, i.sigma_c, i.G_c, i.mu, k_open=k,
+                                                                               mu_i=i.mu_i, tau_c=i.tau_c),
+                            keys=("sigma_c", "G_c", "mu", "mu_i", "tau_c", "rate_effect"), rules=_softening_rules,
+                            breakable=True, rigid=True, theta=False),
 }
 
 

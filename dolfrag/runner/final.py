@@ -4,6 +4,7 @@ damage, load, fragment masses)."""
 from typing import NamedTuple
 
 import numpy as np
+from mpi4py import MPI
 
 from dolfrag.post import fragment_sizes, fragment_table
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, charge_png, exploded, figure_title,
@@ -42,6 +43,11 @@ def finish(ctx, output, damage, wall_time, summary):
     table = output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
                          np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
                                           model.damage(), model.broken(), ctx.break_time]))
+    # the first link broken through, and the load's (mean) pressure then
+    first = ctx.comm.allreduce(float(np.min(np.nan_to_num(ctx.break_time, nan=np.inf), initial=np.inf)),
+                               op=MPI.MIN)
+    summary["first_break"] = None if np.isinf(first) else {"time_s": first,
+                                                          "load_Pa": float(ctx.problem.pressure(first))}
     free = pieces.mass[~pieces.held]
     summary["fragments"] = {**frags.to_dict(),
                             "size_distribution": fragment_sizes.block(free, "kg/m" if space.gdim == 2 else "kg")}
