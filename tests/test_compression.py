@@ -27,6 +27,7 @@ def test_tau_c_makes_the_best_oriented_facet_slip_at_f_cm():
         tau_c = concrete.shear_strength(C30.f_cm, mu_i)
         slip_at = tau_c / np.max(np.sin(theta) * np.cos(theta) - mu_i * np.sin(theta) ** 2)
         assert slip_at == pytest.approx(C30.f_cm, rel=1e-9)  # the grid's 8e-6 rad: O(1e-11)
+    # sqrt(1.5625) = 1.25: exact in binary, so the value is to round-off
     assert concrete.shear_strength(38e6, 0.75) == pytest.approx(9.5e6, rel=1e-12)
 
 
@@ -38,10 +39,12 @@ def test_the_intact_cone_is_mu_i_r_N_plus_tau_c_softened_with_the_strength():
     state = np.array([0.0, -0.5 * delta_c, 0.1 * delta_c])
     r_N = np.array([10e6, 10e6, 10e6])
     radius = law.friction(state) * (r_N + law.shift(state)) + law.shear_cohesion(state)
+    # a few products and sums of the same numbers: round-off
     np.testing.assert_allclose(radius[:2], [mu_i * 10e6 + tau_c, mu_i * 10e6 + 0.5 * tau_c], rtol=1e-14)
     assert radius[2] == pytest.approx(mu * 10e6, rel=1e-14)  # on its springs: Coulomb friction alone
     # at the tension cut-off r_N = -sigma_c the intact radius is tau_c - mu_i sigma_c
-    assert law.friction(state[:1]) * 0.0 + law.shear_cohesion(state[:1]) == pytest.approx(tau_c - mu_i * sigma_c)
+    at_cut_off = law.friction(state[:1]) * (-sigma_c + law.shift(state[:1])) + law.shear_cohesion(state[:1])
+    assert at_cut_off == pytest.approx(tau_c - mu_i * sigma_c, rel=1e-14)
     # without mu_i and tau_c: the reference cone mu (r_N + sigma_c) + sigma_c, unchanged
     plain = LinearSoftening(1, sigma_c, G_c, mu=mu)
     zero = np.zeros(1)
@@ -52,7 +55,7 @@ def test_the_intact_cone_is_mu_i_r_N_plus_tau_c_softened_with_the_strength():
 def test_a_grade_fills_the_cone_and_says_where_from_and_keys_override():
     case = load_case("compression-block")
     assert case.interface.mu_i == concrete.INTERNAL_FRICTION == 0.75
-    assert case.interface.tau_c == pytest.approx(C30.f_cm * (1.25 - 0.75) / 2, rel=1e-12)
+    assert case.interface.tau_c == pytest.approx(C30.f_cm * (1.25 - 0.75) / 2, rel=1e-12)  # as above: round-off
     assert "Richart" in case.sources["interface.mu_i"] and "f_cm" in case.sources["interface.tau_c"]
     given = load_case("compression-block", ["interface.mu_i=0.5"])
     assert given.interface.tau_c == pytest.approx(concrete.shear_strength(C30.f_cm, 0.5), rel=1e-12)

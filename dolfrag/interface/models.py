@@ -334,6 +334,12 @@ class Threshold(_Rigid):
         return self.lost
 
 
+def intact_friction(mu, mu_i):
+    """The internal friction (-) of linear softening's intact links: mu_i, or the sliding
+    friction mu where it is not given (Camacho-Ortiz's cone)."""
+    return mu if mu_i is None else mu_i
+
+
 class LinearSoftening(_Rigid):
     """Linear softening (laws.linear_softening, Camacho-Ortiz / Akantu): rigid until the
     link opens, with tension up to sigma_c (Pa) and shear up to a Mohr-Coulomb cone (the
@@ -380,7 +386,7 @@ class LinearSoftening(_Rigid):
         super().__init__(n_links, mu)
         self.G_c, self.beta_ratio, self.kappa = G_c, beta_ratio, kappa
         # the intact cone mu_i (r_N + shift) + c shift, shift = sigma_c x softening: c = tau_c / sigma_c - mu_i
-        self.mu_i = mu if mu_i is None else mu_i
+        self.mu_i = intact_friction(mu, mu_i)
         self.cohesion_ratio = 1 / beta_ratio if tau_c is None else tau_c / sigma_c - self.mu_i
         self.k_open = np.broadcast_to(np.asarray(k_open, dtype=float), (n_links,))
         self.a_T = beta_ratio**2 / kappa  # the law's shear weight on the traction
@@ -505,7 +511,7 @@ def _softening_rules(interface, C_N):
     missing = _strength_rule(interface, C_N)
     if missing or interface.tau_c is None:
         return missing
-    mu_i = interface.mu if interface.mu_i is None else interface.mu_i
+    mu_i = intact_friction(interface.mu, interface.mu_i)
     if interface.tau_c >= mu_i * interface.sigma_c:
         return None
     return (f"interface.tau_c = {interface.tau_c!r}: linear_softening needs tau_c >= mu_i sigma_c = "
