@@ -860,7 +860,7 @@ def test_the_third_pass_runs_only_where_it_sweeps_further_than_the_second(gdim, 
     from dolfrag.solver import semismooth
     step = SimpleNamespace(options=DEFAULT, escalation=semismooth.ESCALATION, max_iterations=DEFAULT.max_iterations,
                            stars=SimpleNamespace(gdim=gdim), status=np.array([star_kernel.UNCONVERGED]),
-                           _counters=np.zeros(4, dtype=np.int64))
+                           _counters=np.zeros(4, dtype=np.int64), _second=np.zeros(1, dtype=np.bool_))
     passes = []
     semismooth.StarNewton._solve_unconverged_again(step, lambda options, todo: passes.append(options))
     assert [o.max_iterations for o in passes] == [semismooth.ESCALATION * DEFAULT.max_iterations] * len(passes)

@@ -100,6 +100,7 @@ def run(case, out, quiet=False, comm=None, resume=False):
         summary["timings_s"] = integ.timer.summary(comm)
         # star solves accepted at their best iterate within StarOptions.give_up (imex)
         summary["stalled_star_solves"] = comm.allreduce(integ.interface.stalled)
+        summary["second_pass_starts"] = comm.allreduce(integ.interface.remembered)
         summary["status"] = "completed" if last == problem.n_steps else "interrupted"
     except BaseException as err:
         summary["status"] = f"failed at t = {integ.t:.6g} s: {type(err).__name__}: {err}"

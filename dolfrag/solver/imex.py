@@ -51,7 +51,7 @@ class ElasticSprings:
         self._rhs, self._y = np.empty(len(flat.comps)), np.empty(len(flat.comps))
 
     contact_dissipated = 0.0  # no contact: the springs act in compression too
-    iterations = unconverged = stalled = 0  # a direct solve
+    iterations = unconverged = stalled = remembered = 0  # a direct solve
     residual = 0.0
     reaction = None  # the inverted blocks give prescribed components no increment
     layout = failed = None  # no star layout to checkpoint, no star left unsolved

@@ -64,8 +64,9 @@ class _NotConverged(Exception):
 class NewtonReport:
     """Newton iterations of the last step (all its sub-steps), its extra sub-steps from step
     cutting, the largest final scaled residual of its sub-steps, and the energy the contact
-    reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged
-    and stalled stay 0: a step that does not converge is cut, then raises ConvergenceError."""
+    reactions dissipated so far on this rank's links (J, J/m in 2D); the caps. unconverged,
+    stalled and remembered stay 0: a step that does not converge is cut, then raises
+    ConvergenceError."""
     layout = failed = None  # one global system: no star layout, no star left unsolved
     max_iterations: int
     rtol: float
@@ -74,6 +75,7 @@ class NewtonReport:
     residual: float = 0.0
     unconverged: int = 0
     stalled: int = 0
+    remembered: int = 0
     contact_dissipated: float = 0.0
 
 
