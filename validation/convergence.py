@@ -25,11 +25,14 @@ import argparse
 import csv
 import json
 import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from dolfrag.runner import checkpoint
 
 STUDIES = {
     "wall": {"case": "wall-bending-clamped", "sizes": [0.02, 0.01, 0.005], "end": 0.1},
@@ -52,9 +55,8 @@ def run(case, law, size, end, ranks, out, extra=()):
     """One run (skipped when its summary says completed, resumed from its checkpoint when
     it says interrupted, on the same rank count); returns its folder."""
     folder = run_dir(out, law, size)
-    summary = folder / "summary.json"
-    status = json.loads(summary.read_text()).get("status") if summary.is_file() else None
-    ran_to = run_end(folder) if status else end
+    status, ranks_then, ran_to = state(folder)
+    ran_to = end if ran_to is None else ran_to
     if not np.isclose(ran_to, end, rtol=1e-9, atol=0.0):
         print(f"convergence.py: {folder} ran to time.end = {ran_to:g} s, not the {end:g} s asked; "
               "give another --out, or --end to match it", file=sys.stderr)
@@ -63,7 +65,7 @@ def run(case, law, size, end, ranks, out, extra=()):
         return folder
     dolfrag = Path(sys.executable).with_name("dolfrag")
     if status == "interrupted":
-        ranks = json.loads(summary.read_text())["ranks"]
+        ranks = ranks_then
         command = [str(dolfrag), "run", "--resume", str(folder), "--quiet"]
     else:
         sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law], *extra]
@@ -76,9 +78,20 @@ def run(case, law, size, end, ranks, out, extra=()):
     return folder
 
 
-def run_end(folder):
-    """time.end (s) of the run in this folder, from its summary.json."""
-    return json.loads((folder / "summary.json").read_text())["case"]["time"]["end"]
+def state(folder):
+    """(status, ranks, time.end in s) of the run in this folder from its summary.json, or
+    (None, None, None) if nothing ran there. A run whose launcher killed it before it wrote
+    its summary but after a checkpoint counts as interrupted, with the checkpoint's ranks and
+    case: started again with --overwrite it would lose that checkpoint."""
+    summary = folder / "summary.json"
+    if summary.is_file():
+        saved = json.loads(summary.read_text())
+        return saved.get("status"), saved.get("ranks"), saved["case"]["time"]["end"]
+    ranks = sorted((folder / checkpoint.FOLDER).glob("rank*-of-*.pkl"))
+    if not ranks:
+        return None, None, None
+    case = pickle.loads((folder / checkpoint.FOLDER / checkpoint.CASE).read_bytes())
+    return "interrupted", int(ranks[0].stem.split("-of-")[1]), case.time.end
 
 
 def _csv(path):
@@ -199,7 +212,8 @@ def main():
                                                                          args.ranks, out, args.set)
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
-                ends.add(run_end(folder))
+            if (folder / "history.csv").is_file():  # a run killed before its summary: its history
+                ends.add(state(folder)[2])
                 folders.append((size, folder))
         ended = ", ".join(f"{e:g}" for e in sorted(ends)) if ends else f"{end:g}"
         print(f"\n### {study['case']}, interface.law = {law}, to {ended} s\n")

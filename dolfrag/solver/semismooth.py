@@ -88,7 +88,7 @@ LAST_SWEEP_TOL = 1e-14
 # softening, resumed at 20 ms for 54 steps, 2 ranks): its 4-6 hard stars a step, of 90-108
 # copies and 45-54 links, took 51 first-pass iterations each (45 ms) before the second pass
 # solved them in 43-223; the interface phase 35.8 -> 18.4 s, the same broken links, kinetic
-# energy equal to 2e-11. benchmarks/hard_stars.py: 6.0 -> 4.6 s of CPU.
+# energy equal to 2e-11. benchmarks/hard_stars.py: 5.4 -> 4.1 s of CPU.
 REMEMBER = True
 
 
@@ -289,13 +289,13 @@ class StarNewton:
 
     def _solve_unconverged_again(self, solve_stars):
         """Solve the stars the first pass left unconverged (or skipped: REMEMBER) again, with
-        ``escalation`` times the iterations and SECOND_REGULARISATION, and those still unconverged a third time
-        with sweeps to LAST_SWEEP_TOL where the second pass stopped them earlier (3D stars:
-        StarOptions.sweep_tol); the others keep their solutions and cached factors, as
-        if no star had failed (so the answer does not depend on which rank a failed star fell
-        to). Only those stars are solved: each star's solve depends on its own data alone
-        (measured on the cracking bunker-wall-panel, 2,012 stars, one unconverged: the second
-        pass over all stars took 12.8 s)."""
+        ``escalation`` times the iterations and SECOND_REGULARISATION, and those still
+        unconverged a third time with sweeps to LAST_SWEEP_TOL where the second pass stopped
+        them earlier (3D stars: StarOptions.sweep_tol); the others keep their solutions and
+        cached factors, as if no star had failed (so the answer does not depend on which rank
+        a failed star fell to). Only those stars are solved: each star's solve depends on its
+        own data alone (measured on the cracking bunker-wall-panel, 2,012 stars, one
+        unconverged: the second pass over all stars took 12.8 s)."""
         iterations, n_first = self._counters[ITERATIONS], self._counters[N_FIRST]
         again = self.options._replace(max_iterations=self.escalation * self.max_iterations,
                                       regularisation=SECOND_REGULARISATION, polish=SECOND_POLISH)
