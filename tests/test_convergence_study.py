@@ -54,3 +54,21 @@ def test_the_state_at_given_times_comes_from_the_nearest_history_row(tmp_path):
     row = [line for line in result.stdout.splitlines() if line.startswith("| 0.1 |")][-1]
     # |w| in mm, D_damage + D_contact, broken links, at the rows of 5.9 and 8.1 ms
     assert row == "| 0.1 | 0.200, 1, 0 | 0.800, 100, 27 |"
+
+
+def test_a_run_killed_before_its_summary_is_resumed_not_overwritten(tmp_path):
+    # a launcher's SIGKILL during the final checkpoint leaves the last checkpoint and no
+    # summary.json: the study must count that run as interrupted (its checkpoint's case and
+    # ranks), not start it again with --overwrite. Shown by the end check, which reads the
+    # checkpoint's case: asked for another end, the study refuses instead of running.
+    import pickle
+
+    from dolfrag.case import load_case
+    from dolfrag.runner import checkpoint
+    folder = tmp_path / "panel" / "linear_softening-h0.1" / checkpoint.FOLDER
+    folder.mkdir(parents=True)
+    (folder / checkpoint.CASE).write_bytes(pickle.dumps(load_case("bunker-wall-panel", ["time.end=0.0085"])))
+    (folder / "rank00000-of-00002.pkl").write_bytes(b"")
+    result = _study(tmp_path, "--end", "0.02")
+    assert result.returncode == 2, result.stderr
+    assert "0.0085" in result.stderr and folder.is_dir()
