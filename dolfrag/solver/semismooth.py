@@ -256,15 +256,7 @@ class StarNewton:
             self._counters[:] = 0
             call(star_kernel.solve_stars, geometry, data, lay.cache(), outputs, options, todo, abort)
 
-        hard = self._hard if self.remember and self.escalation > 1 else self._no_star
-        np.logical_not(hard, out=self._first)
-        solve_stars(self.options, self._first)
-        self.status[hard] = star_kernel.UNCONVERGED
-        self.remembered += int(np.count_nonzero(hard))
-        self._second[:] = False
-        if (hard.any() or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
-            self._solve_unconverged_again(solve_stars)
-        np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=self._hard)  # REMEMBER
+        self._passes(solve_stars, abort)
         if interrupt is not None and interrupt.pending():  # every rank asks once a step
             raise StepInterrupted
         out[lay.comps] = self._x
@@ -286,6 +278,20 @@ class StarNewton:
         renew = np.flatnonzero(lay.cached == star_kernel.NONE)
         if len(renew):  # the Jacobians of the converged pieces, for the next step's prediction
             star_kernel.keep_pieces(renew, geometry, data, self._x, self._r, lay.cache(), self.options)
+
+    def _passes(self, solve_stars, abort):
+        """The step's passes over the stars: the first over all but those that start in the
+        second (REMEMBER), the second and third (_solve_unconverged_again) over those and the
+        ones the first left unsolved; then which stars start in the second pass next step."""
+        hard = self._hard if self.remember and self.escalation > 1 else self._no_star
+        np.logical_not(hard, out=self._first)
+        solve_stars(self.options, self._first)
+        self.status[hard] = star_kernel.UNCONVERGED
+        self.remembered += int(np.count_nonzero(hard))
+        self._second[:] = False
+        if (hard.any() or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
+            self._solve_unconverged_again(solve_stars)
+        np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=self._hard)
 
     def _solve_unconverged_again(self, solve_stars):
         """Solve the stars the first pass left unconverged (or skipped: REMEMBER) again, with
