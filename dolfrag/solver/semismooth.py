@@ -192,7 +192,6 @@ class StarNewton:
         self._first = np.ones(self.layout.n_stars, dtype=np.bool_)  # the first pass's todo
         self._second = np.zeros(self.layout.n_stars, dtype=np.bool_)  # this step's second pass's
         self._hard = np.zeros(self.layout.n_stars, dtype=np.bool_)  # the stars starting there (REMEMBER)
-        self._no_star = np.zeros(self.layout.n_stars, dtype=np.bool_)
         self._no_stop = np.zeros(1, dtype=np.int8)  # the kernel's abort flag without a stop request
         self._responsive = Responsive()
         self._entry_codes = np.zeros(n_links, dtype=np.int8)  # of unconverged stars only
@@ -283,15 +282,19 @@ class StarNewton:
         """The step's passes over the stars: the first over all but those that start in the
         second (REMEMBER), the second and third (_solve_unconverged_again) over those and the
         ones the first left unsolved; then which stars start in the second pass next step."""
-        hard = self._hard if self.remember and self.escalation > 1 else self._no_star
+        hard = self._hard
+        if not (self.remember and self.escalation > 1):
+            hard[:] = False
+        n_hard = int(np.count_nonzero(hard))
         np.logical_not(hard, out=self._first)
         solve_stars(self.options, self._first)
         self.status[hard] = star_kernel.UNCONVERGED
-        self.remembered += int(np.count_nonzero(hard))
-        self._second[:] = False
-        if (hard.any() or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
+        self.remembered += n_hard
+        if (n_hard or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
             self._solve_unconverged_again(solve_stars)
-        np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=self._hard)
+            np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=hard)
+        else:
+            hard[:] = False
 
     def _solve_unconverged_again(self, solve_stars):
         """Solve the stars the first pass left unconverged (or skipped: REMEMBER) again, with
