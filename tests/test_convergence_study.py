@@ -56,6 +56,18 @@ def test_the_state_at_given_times_comes_from_the_nearest_history_row(tmp_path):
     assert row == "| 0.1 | 0.200, 1, 0 | 0.800, 100, 27 |"
 
 
+def test_a_run_still_going_is_read_from_its_history(tmp_path):
+    # a run that has written history rows but neither its summary nor a checkpoint yet: no
+    # row in the table, its state at the times asked from its history
+    folder = _fake_run(tmp_path, 0.0085)
+    (folder / "summary.json").unlink()
+    result = _study(tmp_path, "--table-only", "--at", "0.008", "0.0125")
+    assert result.returncode == 0, result.stderr
+    assert "fewer than two completed meshes" in result.stdout
+    # 12.5 ms lies past the last row (8.1 ms) by more than the rows' spacing (2.2 ms)
+    assert result.stdout.splitlines()[-1] == "| 0.1 | 0.800, 100, 27 | – |"
+
+
 def test_a_run_killed_before_its_summary_is_resumed_not_overwritten(tmp_path):
     # a launcher's SIGKILL during the final checkpoint leaves the last checkpoint and no
     # summary.json: the study must count that run as interrupted (its checkpoint's case and

@@ -170,20 +170,25 @@ def verdict(rows):
 
 def history_at(folder, times):
     """Rows of the run's history.csv nearest to each time (s): midspan deflection (m),
-    D_damage + D_contact (J), broken links."""
+    D_damage + D_contact (J), broken links; None for a time the run has not reached (past its
+    last row by more than the rows' spacing: a run stopped, or still going)."""
     rows = _csv(folder / "history.csv")
     t = np.array([float(row["time_s"]) for row in rows])
-    picked = [rows[int(np.argmin(np.abs(t - time)))] for time in times]
-    return [(float(row["time_s"]), abs(float(row["w_midspan_m"])),
+    spacing = np.max(np.diff(t)) if len(t) > 1 else 0.0
+    picked = [rows[int(np.argmin(np.abs(t - time)))] if time <= t[-1] + spacing else None for time in times]
+    return [None if row is None else
+            (float(row["time_s"]), abs(float(row["w_midspan_m"])),
              float(row["D_damage_J"]) + float(row["D_contact_J"]), int(row["broken_links"])) for row in picked]
 
 
 def history_table(rows, times):
-    """A markdown table, one row per mesh size, of history_at at each time."""
+    """A markdown table, one row per mesh size, of history_at at each time ("–" where the run
+    has not reached it)."""
     head = " | ".join(f"{t * 1e3:g} ms: deflection (mm), dissipated (J), broken" for t in times)
     lines = [f"| h (m) | {head} |", "|---:|" + "---|" * len(times)]
     for size, folder in rows:
-        cells = " | ".join(f"{w * 1e3:.3f}, {d:.4g}, {b:,}" for _, w, d, b in history_at(folder, times))
+        cells = " | ".join("–" if at is None else f"{at[1] * 1e3:.3f}, {at[2]:.4g}, {at[3]:,}"
+                           for at in history_at(folder, times))
         lines.append(f"| {size:g} | {cells} |")
     return "\n".join(lines)
 
@@ -212,8 +217,10 @@ def main():
                                                                          args.ranks, out, args.set)
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
-            if (folder / "history.csv").is_file():  # a run killed before its summary: its history
-                ends.add(state(folder)[2])
+            if (folder / "history.csv").is_file():  # a run stopped, or still going: its history
+                ran_to = state(folder)[2]  # None while a run has written neither summary nor checkpoint
+                if ran_to is not None:
+                    ends.add(ran_to)
                 folders.append((size, folder))
         ended = ", ".join(f"{e:g}" for e in sorted(ends)) if ends else f"{end:g}"
         print(f"\n### {study['case']}, interface.law = {law}, to {ended} s\n")
