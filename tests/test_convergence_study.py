@@ -66,6 +66,11 @@ def test_a_run_still_going_is_read_from_its_history(tmp_path):
     assert "fewer than two completed meshes" in result.stdout
     # 12.5 ms lies past the last row (8.1 ms) by more than the rows' spacing (2.2 ms)
     assert result.stdout.splitlines()[-1] == "| 0.1 | 0.800, 100, 27 | – |"
+    # a run that has written its history's header only
+    (folder / "history.csv").write_text("step,time_s,w_midspan_m,D_damage_J,D_contact_J,broken_links\n")
+    result = _study(tmp_path, "--table-only", "--at", "0.008")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-1] == "| 0.1 | – |"
 
 
 def test_a_run_killed_before_its_summary_is_resumed_not_overwritten(tmp_path):

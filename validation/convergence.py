@@ -175,7 +175,8 @@ def history_at(folder, times):
     rows = _csv(folder / "history.csv")
     t = np.array([float(row["time_s"]) for row in rows])
     spacing = np.max(np.diff(t)) if len(t) > 1 else 0.0
-    picked = [rows[int(np.argmin(np.abs(t - time)))] if time <= t[-1] + spacing else None for time in times]
+    reached = t[-1] + spacing if len(t) else -np.inf  # a run just started has a header only
+    picked = [rows[int(np.argmin(np.abs(t - time)))] if time <= reached else None for time in times]
     return [None if row is None else
             (float(row["time_s"]), abs(float(row["w_midspan_m"])),
              float(row["D_damage_J"]) + float(row["D_contact_J"]), int(row["broken_links"])) for row in picked]
