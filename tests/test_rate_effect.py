@@ -184,3 +184,13 @@ def test_a_structure_whose_crack_energy_follows_the_mesh_is_warned_once():
     # case's own law, whose G_c is the class's
     assert guards.toughness_warning(load_case("shpb-be16")) is None
     assert guards.toughness_warning(load_case("wall-bending-clamped")) is None
+
+
+def test_every_built_in_structure_but_the_scabbing_ones_keeps_its_crack_energy_whatever_the_mesh():
+    """The built-in walls, slabs, panels and bunkers take a law whose crack energy is G_c, not
+    sigma_c^2 / C_N; the two scabbing cases keep the paper's coupling, for which their pulse
+    was sized (docs/method.md, "Which law for structures")."""
+    from dolfrag import guards
+    from dolfrag.case.loading import builtin_cases
+    tied = {name for name in builtin_cases() if guards.toughness_warning(load_case(name)) is not None}
+    assert tied == {"wall-scabbing", "slab-3d-scabbing"}
