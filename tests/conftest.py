@@ -7,6 +7,14 @@ from types import SimpleNamespace
 
 import pytest
 
+# OpenBLAS picks its kernels by the CPU it runs on, and an AVX-512 machine sums its dot
+# products in another order than an AVX2 one: measured, the pinned numbers of
+# tests/test_same_results.py for the linear-softening cases moved by 3e-9 to 2e-7 of their
+# scale between two such machines, and came back to the digit with the AVX2 ("Haswell")
+# kernels, which every x86-64 CPU since 2013 runs. Set before numpy loads OpenBLAS; workers and
+# mpirun's ranks inherit it.
+os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+
 ROOT = Path(__file__).resolve().parents[1]
 MPI_RANKS = 2  # these machines have 2 cores
 # The files that take minutes (serially: 100-580 s each), run first: pytest-xdist (`make test`)
