@@ -25,7 +25,6 @@ import argparse
 import csv
 import json
 import os
-import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -87,11 +86,10 @@ def state(folder):
     if summary.is_file():
         saved = json.loads(summary.read_text())
         return saved.get("status"), saved.get("ranks"), saved["case"]["time"]["end"]
-    ranks = sorted((folder / checkpoint.FOLDER).glob("rank*-of-*.pkl"))
-    if not ranks:
+    written = checkpoint.ranks_of(folder)
+    if not written:
         return None, None, None
-    case = pickle.loads((folder / checkpoint.FOLDER / checkpoint.CASE).read_bytes())
-    return "interrupted", int(ranks[0].stem.split("-of-")[1]), case.time.end
+    return "interrupted", written[0], checkpoint.case_of(folder).time.end
 
 
 def _csv(path):

@@ -142,19 +142,24 @@ def case_of(out):
     return case
 
 
+def ranks_of(out):
+    """The rank counts a checkpoint in ``out`` was written on, sorted (empty: none there)."""
+    return sorted(int(p.name.split("-of-")[1][:-4]) for p in (Path(out) / FOLDER).glob("rank00000-of-*.pkl"))
+
+
 def load(out, comm):
     """This rank's checkpoint data. Collective. Raises CaseError (the same on every rank)
     when the rank count differs or the ranks' files are of different steps."""
     path = _path(out, comm)
-    written = sorted(p.name.split("-of-")[1][:-4] for p in (Path(out) / FOLDER).glob("rank00000-of-*.pkl"))
+    written = ranks_of(out)
     data = None
     if path.exists():
         with open(path, "rb") as f:
             data = _Unpickler(f).load()
     sizes = comm.allgather(None if data is None else data["step"])
     if None in sizes:
-        raise CaseError(f"--resume {out}: the checkpoint was written on {', '.join(map(str, map(int, written)))} "
-                        f"rank(s); resume it with mpirun -n {int(written[0]) if written else '?'} "
+        raise CaseError(f"--resume {out}: the checkpoint was written on {', '.join(map(str, written))} "
+                        f"rank(s); resume it with mpirun -n {written[0] if written else '?'} "
                         f"(this run has {comm.size})")
     if len(set(sizes)) > 1:
         raise CaseError(f"--resume {out}: the ranks' checkpoints are of different steps {sorted(set(sizes))} "
