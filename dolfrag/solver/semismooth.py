@@ -282,9 +282,7 @@ class StarNewton:
         """The step's passes over the stars: the first over all but those that start in the
         second (REMEMBER), the second and third (_solve_unconverged_again) over those and the
         ones the first left unsolved; then which stars start in the second pass next step."""
-        hard = self._hard
-        if not (self.remember and self.escalation > 1):
-            hard[:] = False
+        hard = self._hard  # only a second pass with REMEMBER sets it
         n_hard = int(np.count_nonzero(hard))
         np.logical_not(hard, out=self._first)
         solve_stars(self.options, self._first)
@@ -292,8 +290,9 @@ class StarNewton:
         self.remembered += n_hard
         if (n_hard or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
             self._solve_unconverged_again(solve_stars)
-            np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=hard)
-        else:
+            if self.remember:
+                np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=hard)
+        elif n_hard:  # a stop request cut the step short: start the next one afresh
             hard[:] = False
 
     def _solve_unconverged_again(self, solve_stars):
