@@ -7,13 +7,15 @@ from types import SimpleNamespace
 
 import pytest
 
-# OpenBLAS picks its kernels by the CPU it runs on, and an AVX-512 machine sums its dot
-# products in another order than an AVX2 one: measured, the pinned numbers of
-# tests/test_same_results.py for the linear-softening cases moved by 3e-9 to 2e-7 of their
-# scale between two such machines, and came back to the digit with the AVX2 ("Haswell")
-# kernels, which every x86-64 CPU since 2013 runs. Set before numpy loads OpenBLAS; workers and
-# mpirun's ranks inherit it.
+# OpenBLAS and numpy's own loops (np.exp, np.log, ...) pick their kernels by the CPU they run
+# on, and an AVX-512 machine rounds and sums in another order than an AVX2 one. Measured: the
+# pinned numbers of tests/test_same_results.py moved by 1e-9 to 2e-7 of their scale between two
+# such machines, and came back to the digit with OpenBLAS's AVX2 ("Haswell") kernels and numpy's
+# AVX-512 loops switched off, which every x86-64 CPU since 2013 runs the same. Set before numpy
+# loads; workers and mpirun's ranks inherit them. numpy ignores a feature the CPU lacks.
 os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", "AVX512F AVX512CD AVX512_KNL AVX512_KNM "
+                      "AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL")
 
 ROOT = Path(__file__).resolve().parents[1]
 MPI_RANKS = 2  # these machines have 2 cores
