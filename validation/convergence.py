@@ -2,6 +2,7 @@
 
     python validation/convergence.py wall                       # wall-bending-clamped, h = 2, 1, 0.5 cm, 0.1 s
     python validation/convergence.py panel                      # bunker-wall-panel, h = 0.1, 0.0667, 0.05 m, 20 ms
+    python validation/convergence.py aci-slab --laws linear_softening   # aci-contest-slab, h = 2, 1, 0.5 cm, 80 ms
     python validation/convergence.py wall --sizes 0.02 0.01 --end 0.04 --ranks 2
     python validation/convergence.py wall --table-only          # the table of the runs already made
     python validation/convergence.py wall --set load.peak=2e5 --out results/convergence-2bar   # below the resistance
@@ -36,6 +37,7 @@ from dolfrag.runner import checkpoint
 STUDIES = {
     "wall": {"case": "wall-bending-clamped", "sizes": [0.02, 0.01, 0.005], "end": 0.1},
     "panel": {"case": "bunker-wall-panel", "sizes": [0.1, 0.0667, 0.05], "end": 0.02},
+    "aci-slab": {"case": "aci-contest-slab", "sizes": [0.02, 0.01, 0.005], "end": 0.08},
 }
 # concrete C30/37 from its class whatever the case file gives (its E, rho and strength removed)
 CONCRETE = ["material.grade=C30/37", "material.E=", "material.rho=", "material.nu=", "interface.sigma_c="]
