@@ -140,8 +140,10 @@ def _rebars(case, domain, space, bulk_ops, comm):
     r = case.rebar
     if r.bond == "fib2010":
         return bond.BondedBars(space, lines, areas, r.diameter, r.E, r.f_y, r.rho, case.mesh.size, comm,
-                               bond.BondLaw(tau_max=r.bond_tau_max, s3=r.bond_s3), eps_u=r.eps_u)
-    bars = cables.Rebars(space, lines, areas, r.E, r.f_y, r.rho, case.mesh.size, comm, eps_u=r.eps_u)
+                               bond.BondLaw(tau_max=r.bond_tau_max, s3=r.bond_s3), eps_u=r.eps_u,
+                               small_strain=r.kinematics == "small_strain")
+    bars = cables.Rebars(space, lines, areas, r.E, r.f_y, r.rho, case.mesh.size, comm, eps_u=r.eps_u,
+                         small_strain=r.kinematics == "small_strain")
     bars.add_mass(bulk_ops.m.x.array)
     return bars
 

@@ -7,7 +7,9 @@
 For each run of `aci-contest-slab` (its folder's history.csv): the peak mid-span deflection
 of the back face and its time, and the deflection at the end of the measured record, each
 against the measurement and as a ratio to it; for a finished run (summary.json) the span
-positions of its through-cracks (clusters of broken links reaching both faces). The figure draws w(t) of every run with the
+positions of its through-cracks (clusters of broken links reaching both faces). Last, the
+closed-form reference of blast design, the strip's elastic-perfectly plastic SDOF under the
+same load (``sdof``). The figure draws w(t) of every run with the
 measured values. Lengths in m (printed in mm), times in s (printed in ms).
 """
 import argparse
@@ -16,6 +18,10 @@ import json
 from pathlib import Path
 
 import numpy as np
+
+from dolfrag import concrete, loads
+from dolfrag.case import load_case
+from dolfrag.reference import analytic
 
 INCH = 0.0254  # m
 # Read off the test's published deflection plot by third parties (docs/validation.md lists where):
@@ -41,6 +47,24 @@ def response(folder):
             "through_cracks_m": None if wall is None else [c["position_m"] for c in wall["through_cracks"]]}
 
 
+def sdof(overrides=()):
+    """The elastic-perfectly plastic strip SDOF (Biggs 1964; analytic.sdof_response) of the
+    case under its own load: mass and gross stiffness of the section, resistance 8 M_p / L
+    from its bars (Whitney block at the grade's f_cm; static strengths, as the run's bars).
+    Returns the response dict of ``response`` without cracks."""
+    case = load_case("aci-contest-slab", overrides)
+    g, bars = case.geometry, case.rebar
+    steel = np.pi * bars.diameter**2 / 4 / bars.spacing  # m^2 per m
+    M_p = analytic.rebar_plastic_moment(steel, bars.f_y, g.width - bars.cover, concrete.concrete(case.material.grade).f_cm)
+    props = analytic.strip_properties(case.material.E, case.material.rho, g.width, g.length, "simple",
+                                      nu=case.material.nu)
+    t, w = analytic.sdof_response(props, loads.signal(case.load), case.time.end,
+                                  resistance=analytic.bending_resistance(0.0, M_p, g.length, "simple"))
+    i = int(np.argmax(w))
+    return {"t": t, "w": w, "peak_m": w[i], "peak_time_s": t[i], "reached_s": t[-1], "broken": 0,
+            "at_record_end_m": float(np.interp(MEASURED["record_end_s"], t, w)), "through_cracks_m": None}
+
+
 def label(folder):
     summary = folder / "summary.json"
     if summary.is_file():
@@ -64,13 +88,14 @@ def table(results):
     return "\n".join([head, *rows])
 
 
-def figure(results, path):
+def figure(results, reference, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for name, r in results:
         ax.plot(r["t"] * 1e3, r["w"] * 1e3, label=name)
+    ax.plot(reference["t"] * 1e3, reference["w"] * 1e3, "k--", lw=1, label="strip SDOF, elastic-perfectly plastic")
     ax.plot([MEASURED["peak_time_s"] * 1e3, MEASURED["record_end_s"] * 1e3],
             [MEASURED["peak_m"] * 1e3, MEASURED["at_record_end_m"] * 1e3], "ks", label="measured (read off its plot)")
     ax.set_xlabel("time (ms)")
@@ -92,8 +117,9 @@ def main():
     results = [(label(f), response(f)) for f in args.runs if (f / "history.csv").is_file()]
     if not results:
         parser.exit(2, "aci_slab.py: no history.csv in the run folders given; make the runs first (see --help)\n")
-    print(table(results))
-    figure(results, args.figure)
+    reference = sdof()
+    print(table([*results, ("strip SDOF, elastic-perfectly plastic", reference)]))
+    figure(results, reference, args.figure)
     print(f"\nfigure: {args.figure}")
 
 

@@ -280,6 +280,10 @@ class Rebar:
     # rupture strain, total engineering strain (B500: A_gt >= 0.05); none: never ruptures
     eps_u: float | None = _f("float", None, bounds="> 0", unit="-")
     rho: float = _f("float", 7850.0, bounds="> 0", unit="kg/m^3")
+    # "exact": the strain |c| / L - 1 of the current chord, the force along it; "small_strain":
+    # t0.(u_b - u_a) / L along the reference direction t0, as the linear bulk beside the bars,
+    # which the exact chords read as a stretch theta^2 / 2 where it turns by theta (cables.py)
+    kinematics: str = _f("str", "exact", choices=("exact", "small_strain"))
     # "perfect": each bar point moves with the cell it lies in; "fib2010": the bars have nodes
     # of their own and slip along the concrete by the fib Model Code 2010 bond-slip law
     # (pull-out, good bond; rebar/bond.py), imex only

@@ -139,8 +139,9 @@ class BondedBars:
     STATE = ("u_s", "v_s", "slip_p", "slip_max", "tau", "eps_p", "ruptured", "plastic_work", "rupture_work", "bond_work",
              "peak_force", "force_max", "N", "_work", "_u_last", "_f_last", "_node_work", "_us_last", "_fs_last", "_us_n")
 
-    def __init__(self, space, lines, areas, diameter, E_s, f_y, rho_s, size, comm, law, eps_u=None):
-        self.space, self.comm, self.law = space, comm, law
+    def __init__(self, space, lines, areas, diameter, E_s, f_y, rho_s, size, comm, law, eps_u=None,
+                 small_strain=False):
+        self.space, self.comm, self.law, self.small_strain = space, comm, law, small_strain
         self.E_s, self.f_y = E_s, (np.inf if f_y is None else f_y)
         self.eps_u = np.inf if eps_u is None else eps_u
         node = self.node = nodes(space, lines, size, comm, samples=1, merge=False)
@@ -249,7 +250,7 @@ class BondedBars:
     def _cables(self, f_s):
         """The cables' forces between nodes into f_s; their state accepted."""
         a, b = self.a, self.b
-        eps, c, ell = chord_strain(self.chord0, self.u_s[b] - self.u_s[a], self.L)
+        eps, c, ell = chord_strain(self.chord0, self.u_s[b] - self.u_s[a], self.L, self.small_strain)
         N, eps_p = bar_force(eps, self.eps_p, self.E_s, self.area, self.f_y)
         N = np.where(self.ruptured, 0.0, N)
         pull = N[:, None] * c / ell[:, None]

@@ -22,6 +22,16 @@ A_gt >= 5 %, EN 1992-1-1 Annex C) breaks for good: it carries nothing from the n
 on (lagged one step, as the interfaces' damage, so that each step problem stays smooth),
 and its elastic energy at that state, 1/2 L N^2 / (E_s A), is dissipated (``dissipated``
 = plastic work + the energy released by ruptures).
+The bulk beside the bars is linear (small strain): a cell turned by theta moves by the
+linearised rotation u = theta e_z x X, which stretches a chord by |c| / L - 1 = sqrt(1 +
+theta^2) - 1 ~ theta^2 / 2 where the bulk sees no strain. That spurious stretch reaches the
+steel's yield strain f_y / E_s (0.25 % for B500) at theta = 0.07 rad: past it the exact
+chords yield bars all along a turning span and stiffen a slab or wall that deflects by more
+than about 4 % of its span (measured on the ACI 447/370 contest slab: docs/validation.md).
+``small_strain`` bars read the strain t0.(C u) / L along their reference direction t0 =
+c0 / L instead, with the force along t0: consistent with the bulk and the interfaces (whose
+link frames are fixed too), blind to any linearised rotation, without the second-order
+stretch of a slid crack or a hanging catenary.
 The bars' mass rho_s A L is lumped onto the cell vertices with the same weights lambda_i.
 Units: m, Pa, N; in 2D a bar stands for a layer of bars ``spacing`` apart across the
 depth, so A is the steel area per metre of depth (m^2/m) and N is N per metre.
@@ -74,9 +84,14 @@ def cable_force(eps, eps_p, E_s, area, f_y=np.inf):
     return area * sigma, eps_p_new, k
 
 
-def chord_strain(chord0, dc, L):
+def chord_strain(chord0, dc, L, small_strain=False):
     """Engineering strain |c| / L - 1 (-) of chords c = chord0 + dc (m, (n, d)) of reference
-    length L (m), and c and |c| (m). Vectorised."""
+    length L (m), and c and |c| (m). Vectorised.
+
+    small_strain: the strain t0.dc / L along the reference direction t0 = chord0 / L
+    instead, returned with the reference chords and lengths (the force keeps direction t0)."""
+    if small_strain:
+        return np.einsum("ji,ji->j", chord0, dc) / L**2, chord0, L
     c = chord0 + dc
     ell = np.linalg.norm(c, axis=1)
     # |c| - L = (2 c0.dc + dc.dc) / (|c| + L): no cancellation, so a strain of 1e-12
@@ -114,14 +129,18 @@ def mean_cable_force(eps_a, eps_b, eps_p, E_s, area, f_y=np.inf):
     return k * N, k * dN
 
 
-def chord_tangent(m_hat, n_hat, sigma, N, dN, L):
+def chord_tangent(m_hat, n_hat, sigma, N, dN, L, small_strain=False):
     """d(N m)/dc (N/m, (n, d, d)) of a force N along m = s / sigma, where s = c_a + c and
     sigma = |c_a| + |c| for a chord c (m) moving from c_a, n = c / |c|, and N depends on c
     through the strain |c| / L - 1 with dN = dN/deps (N): material (dN / L) m n^T plus
     geometric (N / sigma)(I - m n^T), the string stiffness that resists a turn of the chord.
     With c_a = c (s = 2 c, m = n) it is half the tangent of N(eps) n at c; the tangent
-    itself is chord_tangent(n, n, |c|, N, k, L). Vectorised over bars."""
+    itself is chord_tangent(n, n, |c|, N, k, L). small_strain: the chords keep their
+    reference direction (m = n = t0), so only the material part (dN / L) t0 t0^T remains.
+    Vectorised over bars."""
     mn = m_hat[:, :, None] * n_hat[:, None, :]
+    if small_strain:
+        return (dN / L)[:, None, None] * mn
     eye = np.eye(n_hat.shape[1])
     return (dN / L)[:, None, None] * mn + (N / sigma)[:, None, None] * (eye - mn)
 
@@ -168,9 +187,10 @@ class Rebars:
     STATE = ("eps_p", "ruptured", "plastic_work", "rupture_work", "peak_force", "force_max", "_work", "_u_last",
              "_f_last")
 
-    def __init__(self, space, lines, areas, E_s, f_y, rho_s, size, comm, eps_u=None):
+    def __init__(self, space, lines, areas, E_s, f_y, rho_s, size, comm, eps_u=None, small_strain=False):
         self.space, self.E_s, self.f_y, self.rho_s = space, E_s, (np.inf if f_y is None else f_y), rho_s
         self.eps_u = np.inf if eps_u is None else eps_u
+        self.small_strain = small_strain
         self.comm = comm
         node = self.node = nodes(space, lines, size, comm)
         n_owned = space.n_owned_cells
@@ -257,7 +277,7 @@ class Rebars:
     def strain(self, u):
         """Engineering strain |c| / L - 1 (-) of every local segment at displacement u (m),
         and the chords c (n, d) and their lengths |c| (m)."""
-        return chord_strain(self.chord0, (self.C @ u).reshape(-1, self.d), self.L)
+        return chord_strain(self.chord0, (self.C @ u).reshape(-1, self.d), self.L, self.small_strain)
 
     def state(self, u):
         """CableState of the local segments at displacement u (all local components, m),
@@ -296,8 +316,8 @@ class Rebars:
         state = CableState(np.empty(n), np.empty((n, self.d)), np.empty(n), np.empty(n), np.empty(n), np.empty(n))
         f = np.empty_like(u)
         _cable_forces(self.comps, self.weights, self.chord0, self.L, self.area, float(self.E_s), float(self.f_y),
-                      self.eps_p, self.ruptured, u, state.eps, state.n_hat, state.ell, state.N, state.k, state.eps_p,
-                      f)
+                      self.eps_p, self.ruptured, self.small_strain, u, state.eps, state.n_hat, state.ell, state.N,
+                      state.k, state.eps_p, f)
         if commit:
             self.accept(state)
             self._work += _book_work(self._bar, f, u, self._f_last, self._u_last)
@@ -325,7 +345,8 @@ class Rebars:
         and columns ordered as comps) of the counted segments' step forces in the end
         displacement: not symmetric (chord_tangent)."""
         c, end = self.counted, step.end
-        G = chord_tangent(step.m_hat[c], end.n_hat[c], step.sigma[c], step.N[c], step.dN[c], self.L[c])
+        G = chord_tangent(step.m_hat[c], end.n_hat[c], step.sigma[c], step.N[c], step.dN[c], self.L[c],
+                          self.small_strain)
         w = self.weights[c]
         n, m = w.shape
         return np.einsum("jv,jw,jik->jviwk", w, w, G).reshape(n, m * self.d, m * self.d)
@@ -404,11 +425,12 @@ class Rebars:
 # (tests/test_rebar.py).
 
 @njit(cache=True, error_model="numpy")
-def _cable_forces(comps, weights, chord0, L, area, E_s, f_y, eps_p, ruptured, u, eps, n_hat, ell, N, k, eps_p_new, f):
+def _cable_forces(comps, weights, chord0, L, area, E_s, f_y, eps_p, ruptured, small_strain, u, eps, n_hat, ell, N, k,
+                  eps_p_new, f):
     """Per segment j, as Rebars.state: the chord c = chord0 + C_j u from its vertices'
     components comps[j] and weights[j], |c| (ell), the strain (eps), cable_force's N, k and
     plastic strain (eps_p_new; N = k = 0 where ruptured), the unit chord (n_hat); f (as u)
-    = -C^T (N n_hat)."""
+    = -C^T (N n_hat). small_strain: chord_strain's, c = chord0."""
     n, m = weights.shape
     d = chord0.shape[1]
     f[:] = 0.0
@@ -419,11 +441,17 @@ def _cable_forces(comps, weights, chord0, L, area, E_s, f_y, eps_p, ruptured, u,
             dc = 0.0
             for v in range(m):
                 dc += weights[j, v] * u[comps[j, v * d + i]]
-            c[i] = chord0[j, i] + dc
+            if small_strain:
+                c[i] = chord0[j, i]
+                stretch += chord0[j, i] * dc
+            else:
+                c[i] = chord0[j, i] + dc
+                stretch += (2 * chord0[j, i] + dc) * dc
             square += c[i] * c[i]
-            stretch += (2 * chord0[j, i] + dc) * dc
         ell[j] = np.sqrt(square)
-        eps[j] = stretch / (ell[j] + L[j]) / L[j]  # no cancellation: see strain
+        # exact: (|c|^2 - L^2) / (|c| + L) / L, no cancellation (see chord_strain); small
+        # strain: t0.dc / L = (chord0.dc) / L^2, with |c| = L
+        eps[j] = stretch / L[j] / L[j] if small_strain else stretch / (ell[j] + L[j]) / L[j]
         sigma_trial = E_s * (eps[j] - eps_p[j])
         yielding = sigma_trial > f_y
         eps_p_new[j] = eps[j] - f_y / E_s if yielding else eps_p[j]
@@ -474,6 +502,6 @@ def warm():
         comps = np.arange(m * d).reshape(1, -1)
         out = [np.zeros(1), np.zeros((1, d)), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)]
         _cable_forces(comps, np.ones((1, m)), np.ones((1, d)), np.ones(1), np.ones(1), 1.0, np.inf, np.zeros(1),
-                      np.zeros(1, bool), np.zeros(m * d), *out, np.zeros(m * d))
+                      np.zeros(1, bool), False, np.zeros(m * d), *out, np.zeros(m * d))
     _accept(np.ones(1), np.ones(1), 1.0, np.inf, np.ones(1, bool), *(np.zeros(1) for _ in range(4)), np.zeros(1, bool))
     _book_work(np.zeros(1, dtype=np.int64), *(np.zeros(1) for _ in range(4)))
