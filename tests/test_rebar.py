@@ -585,7 +585,8 @@ def test_a_run_with_small_strain_bars_balances_its_energy_and_gives_the_same_ans
     bonded or slipping. To 0.5 ms (255 steps, 142 links broken): further on a link broke one
     step apart on the two rank counts (measured: 196 against 195 broken at step 360, perfect
     bond), after which the runs part."""
-    sets = ["rebar.kinematics=small_strain", f"rebar.bond={bond}", "load.peak=2e7", "load.rise=0.0003", "time.end=0.0005",
+    sets = ["rebar.kinematics=small_strain", f"rebar.bond={bond}", "load.peak=2e7", "load.rise=0.0003",
+            "time.end=0.0005",
             "output.figures=false", "output.fields=0", "interface.rate_effect=none"]
     runs = {}
     for n in (1, 2):

@@ -1,16 +1,16 @@
 """The ACI 447/370 contest slab against its measured deflection (docs/validation.md, "A measured blast test").
 
-    python validation/convergence.py aci-slab --laws linear_softening   # the runs: h = 2, 1, 0.5 cm, 80 ms
+    python validation/convergence.py aci-slab --laws linear_softening   # the runs: h = 3, 2, 1 cm, 80 ms
     python validation/aci_slab.py                                        # the table, and the figure
-    python validation/aci_slab.py --runs results/aci-sensitivity/*       # any runs of the case
+    python validation/aci_slab.py --runs results/aci-sensitivity/*/aci-slab/*   # any runs of the case
 
 For each run of `aci-contest-slab` (its folder's history.csv): the peak mid-span deflection
 of the back face and its time, and the deflection at the end of the measured record, each
 against the measurement and as a ratio to it; for a finished run (summary.json) the span
 positions of its through-cracks (clusters of broken links reaching both faces). Last, the
 closed-form reference of blast design, the strip's elastic-perfectly plastic SDOF under the
-same load (``sdof``). The figure draws w(t) of every run with the
-measured values. Lengths in m (printed in mm), times in s (printed in ms).
+same load (``sdof``). The figure draws w(t) of every run and of the SDOF with the measured
+values. Lengths in m (printed in mm), times in s (printed in ms).
 """
 import argparse
 import csv
@@ -55,7 +55,8 @@ def sdof(overrides=()):
     case = load_case("aci-contest-slab", overrides)
     g, bars = case.geometry, case.rebar
     steel = np.pi * bars.diameter**2 / 4 / bars.spacing  # m^2 per m
-    M_p = analytic.rebar_plastic_moment(steel, bars.f_y, g.width - bars.cover, concrete.concrete(case.material.grade).f_cm)
+    f_cm = concrete.concrete(case.material.grade).f_cm
+    M_p = analytic.rebar_plastic_moment(steel, bars.f_y, g.width - bars.cover, f_cm)
     props = analytic.strip_properties(case.material.E, case.material.rho, g.width, g.length, "simple",
                                       nu=case.material.nu)
     t, w = analytic.sdof_response(props, loads.signal(case.load), case.time.end,
@@ -80,7 +81,8 @@ def table(results):
             f"{MEASURED['at_record_end_m'] * 1e3:.0f} | 1 | | | |"]
     for name, r in results:
         end = r["at_record_end_m"]
-        cracks = "–" if r["through_cracks_m"] is None else ", ".join(f"{x:.2f}" for x in r["through_cracks_m"]) or "none"
+        cracks = r["through_cracks_m"]
+        cracks = "–" if cracks is None else ", ".join(f"{x:.2f}" for x in cracks) or "none"
         at_end = ("–", "–") if end is None else (f"{end * 1e3:.1f}", f"{end / MEASURED['at_record_end_m']:.2f}")
         rows.append(f"| {name} | {r['peak_m'] * 1e3:.1f} | {r['peak_m'] / MEASURED['peak_m']:.2f} | "
                     f"{r['peak_time_s'] * 1e3:.1f} | {at_end[0]} | {at_end[1]} | {r['broken']:,} | {cracks} | "
