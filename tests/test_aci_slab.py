@@ -50,9 +50,10 @@ def _history(folder, t, w):
 
 def test_the_script_reads_the_peak_and_the_deflection_where_the_record_ends(tmp_path):
     t = np.linspace(0.0, 0.08, 81)
-    _history(tmp_path / "run", t, 0.1 * np.minimum(t / 0.03, 1.0) - 0.05 * np.maximum(t - 0.03, 0.0))
-    _history(tmp_path / "short", t[:41], 0.05 * t[:41] / 0.04)
-    result = subprocess.run([sys.executable, str(SCRIPT), "--runs", str(tmp_path / "run"), str(tmp_path / "short"),
+    run, short = tmp_path / "convergence" / "aci-slab" / "run", tmp_path / "stiffer" / "aci-slab" / "short"
+    _history(run, t, 0.1 * np.minimum(t / 0.03, 1.0) - 0.05 * np.maximum(t - 0.03, 0.0))
+    _history(short, t[:41], 0.05 * t[:41] / 0.04)
+    result = subprocess.run([sys.executable, str(SCRIPT), "--runs", str(run), str(short),
                              "--figure", str(tmp_path / "w.png")], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
@@ -60,7 +61,8 @@ def test_the_script_reads_the_peak_and_the_deflection_where_the_record_ends(tmp_
     # the run: largest 0.1 m at 30 ms (0.1 / 4.25 in = 0.93); at 70 ms 0.1 - 0.05 * 0.04 m
     assert rows["run"][:4] == ["100.0", "0.93", "30.0", "98.0"]
     assert rows["run"][6] == "–"  # no summary.json: no crack list
-    assert rows["short"][3] == "–" and rows["short"][7] == "40.0"  # stopped at 40 ms: no value at 70 ms
+    # a run of another study is named after it; stopped at 40 ms: no value at 70 ms
+    assert rows["stiffer, short"][3] == "–" and rows["stiffer, short"][7] == "40.0"
     assert (tmp_path / "w.png").stat().st_size > 0
 
 

@@ -67,11 +67,15 @@ def sdof(overrides=()):
 
 
 def label(folder):
+    """The run's name: its folder's, after the study's (a study run with --out NAME/... is
+    NAME/h...), with the mesh size once its summary is written."""
+    study = folder.parent.parent.name
+    name = folder.name if study == "convergence" else f"{study}, {folder.name}"
     summary = folder / "summary.json"
     if summary.is_file():
         case = json.loads(summary.read_text())["case"]
-        return f"{folder.name} (h = {case['mesh']['size'] * 100:g} cm)"
-    return folder.name
+        return f"{name} (h = {case['mesh']['size'] * 100:g} cm)"
+    return name
 
 
 def table(results):
