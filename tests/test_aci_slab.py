@@ -70,3 +70,14 @@ def test_the_script_says_which_runs_it_lacks(tmp_path):
     result = subprocess.run([sys.executable, str(SCRIPT), "--runs", str(tmp_path / "none")],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "no history.csv" in result.stderr
+
+
+def test_a_run_whose_exact_bars_turned_past_their_yield_says_so(case):
+    from dolfrag.runner.reports.wall import turning_warning
+    span = case.geometry.length
+    # the exact bars' run of this case: 115 mm, 2 w / L = 0.17 rad, past sqrt(2 f_y / E_s) = 0.070
+    exact = case.rebar.__class__(**{**vars(case.rebar), "kinematics": "exact"})
+    line = turning_warning(exact, 0.115, span)
+    assert line.startswith("dolfrag: warning:") and "0.17 rad" in line and "0.07 rad" in line
+    assert turning_warning(exact, 0.04, span) is None  # 0.061 rad: below
+    assert turning_warning(case.rebar, 0.4, span) is None  # small-strain bars read no rotation

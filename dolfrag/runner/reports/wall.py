@@ -6,6 +6,7 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
+from dolfrag import guards
 from dolfrag.reference import analytic
 from dolfrag.post import wall
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, deflection_png, exploded, figure_title,
@@ -34,6 +35,21 @@ def wall_section(case):
     if g.kind == "box" and face in ("front", "back"):
         return WallSection((g.length, g.width), g.thickness, g.thickness if face == "front" else 0.0, (0, 1), 2)
     return None
+
+
+def turning_warning(rebar, peak_deflection, span):
+    """The one-line warning (or None) when a run's exact, yielding bars (case.Rebar) turned
+    far enough for the linear bulk's rotation theta to read as their yield, theta^2 / 2 =
+    f_y / E_s (rebar/cables.py), theta taken as a mid-span hinge's 2 |w| / L over the
+    shortest span (m; a number, or one per axis), w the peak deflection (m)."""
+    if not rebar.faces or rebar.kinematics != "exact" or rebar.f_y is None:
+        return None
+    theta, at_yield = 2 * abs(peak_deflection) / min(np.atleast_1d(span)), np.sqrt(2 * rebar.f_y / rebar.E)
+    if theta <= at_yield:
+        return None
+    return (f"dolfrag: warning: the span turned by about {theta:.2g} rad (2 w / L), past the {at_yield:.2g} rad "
+            "where exact bars read the linear bulk's rotation as a stretch of their yield strain and stiffen it; "
+            "rebar.kinematics = 'small_strain' does not (docs/wall.md, Rebars)")
 
 
 def midspan(space, section, size):
@@ -104,6 +120,7 @@ class WallReport(Observer):
                                     table[:, 2 * d + 3], *self.deflection, peak_force, final.wall_time,
                                     h=ctx.case.mesh.size, **section._asdict())
         summary["wall"] = comm.bcast(block, root=0)
+        guards.warn(turning_warning(ctx.case.rebar, summary["wall"]["midspan_deflection"]["peak_m"], section.span), comm)
         strength = ctx.problem.law.tensile_strength(ctx.case.interface, integ.model.C_N)
         summary["wall"]["estimates"], self._bending = estimates(ctx.case, ctx.problem.pressure, integ.model.C_N,
                                                                 strength, section)
