@@ -120,7 +120,8 @@ class WallReport(Observer):
                                     table[:, 2 * d + 3], *self.deflection, peak_force, final.wall_time,
                                     h=ctx.case.mesh.size, **section._asdict())
         summary["wall"] = comm.bcast(block, root=0)
-        guards.warn(turning_warning(ctx.case.rebar, summary["wall"]["midspan_deflection"]["peak_m"], section.span), comm)
+        peak = summary["wall"]["midspan_deflection"]["peak_m"]
+        guards.warn(turning_warning(ctx.case.rebar, peak, section.span), comm)
         strength = ctx.problem.law.tensile_strength(ctx.case.interface, integ.model.C_N)
         summary["wall"]["estimates"], self._bending = estimates(ctx.case, ctx.problem.pressure, integ.model.C_N,
                                                                 strength, section)
