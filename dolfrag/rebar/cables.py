@@ -1,4 +1,5 @@
-"""Rebars: embedded steel bars that carry axial tension only (cables), geometrically exact.
+"""Rebars: embedded steel bars that carry axial tension only (cables), geometrically exact
+or in small strain (``small_strain``, below).
 
 A bar is a polyline tied to the cells it crosses (layout.py): one *node* per crossed
 cell, one *segment* between consecutive nodes. A node moves with the P1 displacement of its
