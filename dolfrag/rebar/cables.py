@@ -28,7 +28,7 @@ linearised rotation u = theta e_z x X, which stretches a chord by |c| / L - 1 = 
 theta^2) - 1 ~ theta^2 / 2 where the bulk sees no strain. That spurious stretch reaches the
 steel's yield strain f_y / E_s (0.25 % for B500) at theta = 0.07 rad: past it the exact
 chords yield bars all along a turning span and stiffen a slab or wall that deflects by more
-than about 4 % of its span (measured on the ACI 447/370 contest slab: docs/validation.md).
+than about 3.5 % of its span (measured on the ACI 447/370 contest slab: docs/validation.md).
 ``small_strain`` bars read the strain t0.(C u) / L along their reference direction t0 =
 c0 / L instead, with the force along t0: consistent with the bulk and the interfaces (whose
 link frames are fixed too), blind to any linearised rotation, without the second-order
