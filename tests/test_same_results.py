@@ -13,7 +13,7 @@ import math
 import sys
 from pathlib import Path
 
-import conftest  # noqa: F401  (its OPENBLAS_CORETYPE, before numpy loads, for `record` too)
+import conftest  # noqa: F401  (its CPU-kernel settings, before numpy loads, for `record` too)
 import pytest
 from mpi4py import MPI
 

@@ -276,8 +276,8 @@ class Rebars:
         np.add.at(m, comps.ravel(), np.repeat((lam * mass[:, None]).ravel(), space.gdim))
 
     def strain(self, u):
-        """Engineering strain |c| / L - 1 (-) of every local segment at displacement u (m),
-        and the chords c (n, d) and their lengths |c| (m)."""
+        """Strain (-) of every local segment at displacement u (m), and the chords c (n, d) and
+        their lengths |c| (m): chord_strain's, exact or small strain."""
         return chord_strain(self.chord0, (self.C @ u).reshape(-1, self.d), self.L, self.small_strain)
 
     def state(self, u):
