@@ -505,7 +505,7 @@ def test_every_accepted_star_is_below_the_tolerance_on_the_contact_laws(law, mon
         if step % 20 != 19:
             continue
         geometry, data, _, out, options = calls[-1][:5]
-        comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, _ = geometry
+        comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed = geometry[:10]
         rhs, x_in, g_n, dg, mu, shift, cohesion_T, k_N, k_T, h, floor_m, floor_c = data
         rtol = options.rtol
         x, r, status = out.x, out.r, out.status
@@ -538,8 +538,8 @@ def _kernel_args(star):
     and an empty cache (records.Cache's arrays, as a list)."""
     q, L, d = star["q"], star["L"], star["d"]
     comp_off, link_off = np.array([0, q]), np.array([0, L])
-    geometry = Geometry(comp_off, link_off, star["slot_A"], star["slot_B"], star["frame"], star["w"], star["rho"],
-                        star["frozen"], star["m"], star["fixed"], _elimination(star))
+    geometry = star_kernel.star_geometry(comp_off, link_off, star["slot_A"], star["slot_B"], star["frame"], star["w"],
+                                         star["rho"], star["frozen"], star["m"], star["fixed"])
     data = StepData(star["rhs"], np.zeros(q), *(star[k] for k in ("g_n", "dg", "mu", "shift", "cohesion_T", "k_N",
                                                                     "k_T", "h")), 0.0, 0.0)
     return geometry, data, list(star_kernel.empty_cache(comp_off, link_off, d))

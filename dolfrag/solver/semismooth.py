@@ -121,7 +121,8 @@ class StarLayout(FlatStars):
         held = np.zeros(len(stars.constrained) // d, dtype=bool)  # per local dof: every component prescribed
         held[self.comps[::d] // d] = self.fixed.reshape(-1, d).all(axis=1)
         self.frozen = np.ascontiguousarray(held[links.dof_A[self.links]] & held[links.dof_B[self.links]])
-        self.elimination = star_kernel.unknown_orders(self.comp_off, self.link_off, self.slot_A, self.slot_B, d)
+        self._geometry = star_kernel.star_geometry(self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame,
+                                                   self.weight, self.rho, self.frozen, self.mass, self.fixed)
         # per star its factors, what they are (star_kernel.NONE, ...), per link their piece, slip
         # directions and (k_N, k_T, mu): records.Cache
         (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
@@ -139,8 +140,7 @@ class StarLayout(FlatStars):
 
     def geometry(self):
         """The layout as the kernel reads it (records.Geometry)."""
-        return Geometry(self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame, self.weight, self.rho,
-                        self.frozen, self.mass, self.fixed, self.elimination)
+        return self._geometry
 
     def cache(self):
         """The stored factors as the kernel reads them (records.Cache): built at each call, as

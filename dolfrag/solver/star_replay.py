@@ -22,7 +22,7 @@ START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-
          star_kernel.EXACT: "predicted", star_kernel.STALE: "predicted by stale factors"}
 # the fields of the kernel's records (Geometry, StepData, Cache) a dump holds per component and
 # per link, by the same names; of the rest, the scalars, and not the stars' elimination order
-# (Geometry), which replay forms again from their links
+# and rigid inverses (Geometry), which replay forms again from their links
 PER_COMP = ("mass", "fixed", "rhs", "x_in")
 PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
             "codes", "slip_dir", "factored")
@@ -84,8 +84,8 @@ def replay(path, regularisation=DEFAULT.regularisation, sweep_tol=DEFAULT.sweep_
         one = slice(s, s + 1)
         star = select(np.array([s]), comp_off, link_off, {k: data[k] for k in PER_COMP},
                       {k: data[k] for k in PER_LINK})
-        elimination = star_kernel.unknown_orders(star["comp_off"], star["link_off"], star["slot_A"], star["slot_B"], d)
-        geometry = Geometry(**{k: star[k] for k in Geometry._fields[:-1]}, elimination=elimination)
+        geometry = star_kernel.star_geometry(*(star[k] for k in Geometry._fields[:-3]))
+        elimination = geometry.elimination
         step = StepData(**{k: star[k] for k in StepData._fields[:-3]}, h=float(data["h"]),
                         floor_m=float(data["floor_m"]), floor_c=float(data["floor_c"]))
         q, L = star["comp_off"][1], star["link_off"][1]

@@ -10,8 +10,18 @@ from dolfrag.solver.stars.jacobian import factor_piece, kind_of, note_factored
 from dolfrag.solver.stars.newton import newton_space, solve_each
 from dolfrag.solver.stars.options import DEFAULT
 from dolfrag.solver.stars.ordering import unknown_orders
-from dolfrag.solver.stars.records import NONE, Geometry, StepData, empty_cache, empty_outputs, star_at
+from dolfrag.solver.stars.records import NONE, RIGID, Geometry, StepData, empty_cache, empty_outputs, star_at
+from dolfrag.solver.stars.rigid import held, rigid_inverses, rigid_space
 from dolfrag.solver.stars.residual import evaluation, evaluate
+
+
+def star_geometry(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed):
+    """The layout's record (records.Geometry) of these arrays, with what it derives from them:
+    each star's elimination order and rigid inverse."""
+    d = frame.shape[1]
+    return Geometry(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
+                    unknown_orders(comp_off, link_off, slot_A, slot_B, d),
+                    *rigid_inverses(comp_off, link_off, slot_A, slot_B, weight, rho, fixed, frozen, d))
 
 
 @njit(cache=True, error_model="numpy")
@@ -103,7 +113,7 @@ def _solve_stars(d, geometry, data, cache, out, options, todo, abort):
     # workspaces, once per call
     ev, sw = evaluation(d, q_max, L_max), sweep_space(d, q_max, L_max)
     nw = newton_space(d, q_max, L_max, options.flips)
-    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort)
+    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rigid_space(q_max), todo, abort)
 
 
 @njit(cache=True, error_model="numpy")
@@ -111,16 +121,18 @@ def keep_pieces(stars, geometry, data, x, r, cache, options):
     """Store, for the next step's prediction, the LU factors of the Jacobian of the piece
     each of ``stars`` converged on (x per component, r per link), its slip directions held
     (factor_piece), with the friction, cohesion and springs of ``data`` (after the step);
-    ``cached`` says what they are (kind_of). Records as solve_stars; of ``options`` only the
-    regularisation is read (the stored factors are Newton's matrix)."""
+    ``cached`` says what they are (kind_of). A star that qualifies for the rigid path
+    (stars/rigid.py) and converged closed and sticking on every link stores no factors, only
+    that piece (RIGID), where options.rigid. Records as solve_stars; of ``options`` only the
+    regularisation (the stored factors are Newton's matrix) and ``rigid`` are read."""
     if geometry.frame.shape[1] == 2:  # the dimension a compile-time constant, as in solve_stars
-        _keep_pieces(2, stars, geometry, data, x, r, cache, options.regularisation)
+        _keep_pieces(2, stars, geometry, data, x, r, cache, options.regularisation, options.rigid)
     else:
-        _keep_pieces(3, stars, geometry, data, x, r, cache, options.regularisation)
+        _keep_pieces(3, stars, geometry, data, x, r, cache, options.regularisation, options.rigid)
 
 
 @njit(cache=True, error_model="numpy")
-def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation):
+def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation, rigid):
     """keep_pieces in d dimensions, d a compile-time constant (see _solve_stars)."""
     q_max, L_max = _largest(geometry.comp_off, geometry.link_off, stars)
     ev = evaluation(d, q_max, L_max)
@@ -136,6 +148,10 @@ def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation):
         l1 = l0 + L
         evaluate(d, star, x[p0:p0 + q], r[l0:l1], 0.0, 0.0, ev)
         code, e = ev.code, ev.e
+        if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and held(code[:L]):
+            cache.codes[l0:l1] = code[:L]  # no factors: the rigid path (stars/rigid.py) next
+            cache.cached[s] = RIGID
+            continue
         for l in range(L):
             if code[l] & SLIP:
                 cache.slip_dir[l0 + l, :d - 1] = e[l, :d - 1]
@@ -154,8 +170,8 @@ def warm():
         q, L = 2 * d, 1
         comp_off, link_off, slot_A, slot_B = np.array([0, q]), np.array([0, L]), np.array([0]), np.array([1])
         frame = np.eye(d)[None].copy()
-        geometry = Geometry(comp_off, link_off, slot_A, slot_B, frame, np.ones(L), np.ones(L), np.zeros(L, bool),
-                            np.ones(q), np.zeros(q, bool), unknown_orders(comp_off, link_off, slot_A, slot_B, d))
+        geometry = star_geometry(comp_off, link_off, slot_A, slot_B, frame, np.ones(L), np.ones(L), np.zeros(L, bool),
+                                 np.ones(q), np.zeros(q, bool))
         data = StepData(np.ones(q), np.zeros(q), np.zeros((L, d)), np.zeros((L, d)), np.zeros(L), np.zeros(L),
                         np.zeros(L), np.ones(L), np.ones(L), 1.0, 0.0, 0.0)
         cache = empty_cache(comp_off, link_off, d)

@@ -14,8 +14,10 @@ from dolfrag.solver.stars.jacobian import factor_jacobian, flip_rows, kind_of, n
 from dolfrag.solver.stars.lu import solve_star, woodbury_factor, woodbury_solve
 from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import (APPROXIMATE, CONVERGED, EXACT, ITERATIONS, N_FIRST, N_STALLED,
-                                          N_UNCONVERGED, NONE, STALE, STALLED, UNCONVERGED, star_at)
+                                          N_UNCONVERGED, NONE, RIGID, STALE, STALLED, UNCONVERGED, star_at)
 from dolfrag.solver.stars.residual import B_SCALE, evaluate
+from dolfrag.solver.stars.rigid import held as all_held
+from dolfrag.solver.stars.rigid import rigid_solve
 
 # Newton's workspaces, sized for the largest star of a call (q_max components, L_max links,
 # N_max unknowns): the iterate (x, r); the piece and data the star started from (code_in,
@@ -46,12 +48,17 @@ def newton_space(d, q_max, L_max, flips):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
+def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abort):
     """Solve each star s where todo[s] (records: Geometry, StepData, Cache, Outputs;
     StarOptions) and write its outputs and what its stored factors are now
-    (solvers.loop.solve_stars says what each means). ev, sw, nw: the workspaces of
-    evaluate, gauss_seidel and Newton (Evaluation, SweepSpace, NewtonSpace). Returns
-    unfinished where ``abort`` gets set.
+    (solvers.loop.solve_stars says what each means). ev, sw, nw, rw: the workspaces of
+    evaluate, gauss_seidel, Newton and the rigid path (Evaluation, SweepSpace, NewtonSpace,
+    rigid.RigidSpace). Returns unfinished where ``abort`` gets set.
+
+    A star whose stored piece is closed and sticking on every link, and that qualifies
+    (rigid.rigid_inverses), is first held rigid (rigid.rigid_solve): solved there if its
+    residual is within rtol, at iteration 1, its factors left as they were; else Newton
+    solves it, from zero if it had no factors (RIGID).
 
     The loop over the stars is here, with the record fields it reads taken into locals
     once: numba increfs every array of every record passed to a compiled function on entry
@@ -62,6 +69,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
     (benchmarks/step_cost.py --law rccm, see the commit). Per star only star_at and the
     per-iteration kernels are called, whose entry refcounts the pruning removes or few."""
     comp_off, link_off, elimination = geometry.comp_off, geometry.link_off, geometry.elimination
+    rigid_off, rigid = geometry.rigid_off, geometry.rigid
     factors, fac_off, pivots, piv_off = cache.factors, cache.fac_off, cache.pivots, cache.piv_off
     codes, cached, factored, slip_dir = cache.codes, cache.cached, cache.factored, cache.slip_dir
     status, residual, counters = out.status, out.residual, out.counters
@@ -89,6 +97,17 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
             continue
         l1 = l0 + L
         xs, rs = x_nw[:q], r_nw[:L]
+        r0, r1 = rigid_off[s], rigid_off[s + 1]
+        if options.rigid and cached[s] != NONE and r1 > r0 and all_held(codes[l0:l1]):
+            scaled_m, scaled_c = rigid_solve(d, star, rigid[r0:r1], xs, rs, data.floor_m, data.floor_c, ev, rw)
+            if max(scaled_m, scaled_c) <= options.rtol:
+                counters[N_FIRST] += 1
+                counters[ITERATIONS] = max(counters[ITERATIONS], 1)
+                status[s], residual[s] = CONVERGED, max(scaled_m, scaled_c)
+                _write(d, p0, l0, q, L, xs, rs, reaction, gbar, slip, x_out, reaction_out, r_out, gbar_out, slip_out)
+                continue
+        if cached[s] == RIGID:  # no factors to predict with
+            cached[s] = NONE
         store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
         order = elimination[p0 + d * l0:p0 + d * l0 + N]
         scode = codes[l0:l1]
@@ -171,14 +190,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
                     factored[l0:l1] = factored_in[:L]
                     out.entry_cached[s] = start
                 residual[s] = scaled
-                for i in range(q):
-                    x_out[p0 + i] = xs[i]
-                    reaction_out[p0 + i] = reaction[i]
-                for l in range(L):
-                    for i in range(d):
-                        r_out[l0 + l, i] = rs[l, i]
-                        gbar_out[l0 + l, i] = gbar[l, i]
-                        slip_out[l0 + l, i] = slip[l, i]
+                _write(d, p0, l0, q, L, xs, rs, reaction, gbar, slip, x_out, reaction_out, r_out, gbar_out, slip_out)
                 break
             if predicted and iteration == options.restart:  # from zero, with the schedule of a start from zero
                 for i in range(q):
@@ -251,6 +263,21 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
             for l in range(L):
                 for i in range(d):
                     rs[l, i] -= delta[q + i * L + l]
+
+
+@njit(cache=True, error_model="numpy")
+def _write(d, p0, l0, q, L, x, r, reaction, gbar, slip, x_out, reaction_out, r_out, gbar_out, slip_out):
+    """A star's iterate (x, r) and what evaluate left of it (reaction, gbar, slip) into the
+    outputs (records.Outputs' arrays), at its first component p0 and link l0. (Arrays, not
+    the records: see solve_each.)"""
+    for i in range(q):
+        x_out[p0 + i] = x[i]
+        reaction_out[p0 + i] = reaction[i]
+    for l in range(L):
+        for i in range(d):
+            r_out[l0 + l, i] = r[l, i]
+            gbar_out[l0 + l, i] = gbar[l, i]
+            slip_out[l0 + l, i] = slip[l, i]
 
 
 @njit(cache=True, error_model="numpy")

@@ -24,6 +24,11 @@ class StarOptions(NamedTuple):
     # Start each star from the affine prediction of its stored piece (solver/active_set.py);
     # False: every star from zero.
     predict: bool = True
+    # A star whose last piece was closed and sticking on every link first tries that piece
+    # held rigid (rigid.py): its motion and reactions from the star's graph Laplacian instead
+    # of Newton on q + L d unknowns, accepted where its residual is within rtol. False: every
+    # star takes Newton.
+    rigid: bool = True
     # Rigid constraints around a vertex are redundant: the jumps of an interior star sum to
     # zero around the vertex, so when every link sticks (a rigid threshold or linear-softening
     # star, or a frictional contact ring) the constraint rows lose rank and the exact Jacobian

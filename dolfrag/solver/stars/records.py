@@ -32,6 +32,8 @@ Geometry = namedtuple("Geometry", (
     "mass",         # (n_comps,) kg: lumped
     "fixed",        # (n_comps,) bool: prescribed
     "elimination",  # (n_comps + d n_links,) int: each star's unknown_order, at comp_off + d link_off
+    "rigid_off",    # (n_stars + 1,) int: each star's rigid inverse (rigid.rigid_inverses; empty: none)
+    "rigid",        # the rigid inverses, n^2 values a star of n copies
 ))
 
 StepData = namedtuple("StepData", (
@@ -88,7 +90,9 @@ CONVERGED, STALLED, UNCONVERGED = 0, 1, 2
 # (newton._keep_newton_factors). Measured on bunker-h2 at 8 ms (0.2 m, 2,050 stars): 430
 # stars with a slipping link started from zero took 4.3 Newton iterations each, half the
 # kernel's time.
-NONE, APPROXIMATE, EXACT, STALE = 0, 1, 2, 3
+# RIGID: no factors; the star's last piece was closed and sticking on every link, and it
+# tries the rigid path (rigid.py) first.
+NONE, APPROXIMATE, EXACT, STALE, RIGID = 0, 1, 2, 3, 4
 # Newton factorises the exact Jacobians of a star with APPROXIMATE factors into workspaces
 # and leaves those in place: they stay its next step's start where their prediction solves
 # it; where Newton's last Jacobian is of a slipping piece, that one replaces them
