@@ -807,6 +807,37 @@ def test_compiled_rccm_advance_is_trial_state_then_store(d, mu_i):
     assert len(links) // 10 < len(changed) < len(links) - len(links) // 10  # links that damage and links that do not
 
 
+@pytest.mark.parametrize("d", [2, 3])
+def test_compiled_linear_softening_advance_is_the_numpy_store(d):
+    """LinearSoftening.advance (softening_kernel.advance, one pass) against the generic step,
+    _Model.advance with the numpy store: links rigid, opening, switching to their springs,
+    softening, unloading and broken, per-link strengths; delta_max, sprung, the cohesive
+    work and the released energy equal bit for bit, and the same links changed."""
+    n, sigma_c, G_c = 3000, 4e6, 100.0
+    rng = np.random.default_rng(17)
+    k_open = rng.uniform(1e12, 1e14, n)
+    compiled, generic = (models.LinearSoftening(n, sigma_c, G_c, mu=0.3, beta_ratio=0.8, kappa=1.2, k_open=k_open)
+                         for _ in range(2))
+    strengths = rng.uniform(0.5, 2.0, n) * sigma_c
+    delta_c = 2 * G_c / strengths
+    delta_max = np.select([rng.random(n) < 0.3, rng.random(n) < 0.2], [0.0, 2 * delta_c],
+                          rng.uniform(0.0, 1.0, n) * delta_c)
+    sprung = (delta_max > 0) & (rng.random(n) < 0.7)
+    work = rng.uniform(0, 50, n)
+    for model in (compiled, generic):
+        model.set_strength(strengths)
+        model.delta_max[:], model.sprung[:] = delta_max, sprung
+        model.work[:], model.released[:] = work, 0.25
+    links = rng.permutation(n)[: 2 * n // 3]
+    g_mid = delta_c[links, None] * rng.uniform(-0.5, 1.5, (len(links), d)) * (rng.random((len(links), 1)) < 0.8)
+    changed = compiled.advance(links, g_mid, g_mid, np.zeros(len(links)))
+    np.testing.assert_array_equal(changed, models._Model.advance(generic, links, g_mid, g_mid, np.zeros(len(links))))
+    for name in ("delta_max", "sprung", "work", "released"):
+        np.testing.assert_array_equal(getattr(compiled, name), getattr(generic, name), name)
+    switched = compiled.sprung & ~sprung
+    assert len(links) // 10 < len(changed) < len(links) - len(links) // 10 and switched.sum() > 10
+
+
 def _second_pass():
     """star_replay.replay's settings for a step's second pass (semismooth._solve_unconverged_again)."""
     from dolfrag.solver import semismooth

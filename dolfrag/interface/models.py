@@ -9,7 +9,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from dolfrag.interface import laws, rccm_kernel
+from dolfrag.interface import laws, rccm_kernel, softening_kernel
 
 # Relative margin of the damage-threshold test of the RCCM trial states: links this close to
 # their threshold go to the envelope, which decides exactly (round-off of w / beta_n
@@ -470,6 +470,15 @@ class LinearSoftening(_Rigid):
         self.work[links[switching]] = 0.0
         self.delta_max[links] = new
         self.sprung[links] = now
+
+    def advance(self, links, gbar, g_mid, r_N):
+        """_Model.advance in one compiled pass (softening_kernel.advance: store's arithmetic;
+        the trial state is the state before, which store does not read)."""
+        changed = np.empty(len(links), dtype=np.int64)
+        count = softening_kernel.advance(links, g_mid, self.beta_ratio**2 / self.kappa**2, float(self.a_T),
+                                         OPENING_TOLERANCE, self.sigma_c, self._delta_c, self._delta_open,
+                                         self.delta_max, self.sprung, self.work, self.released, changed)
+        return changed[:count]
 
     def rigid(self):
         return ~self.sprung
