@@ -7,6 +7,7 @@ from numba import njit
 
 from dolfrag.solver.active_set import CONTACT, spring_normal_tangent
 from dolfrag.solver.stars.lu import lu_factor, lu_solve
+from dolfrag.solver.stars.residual import frame_jump
 
 # gauss_seidel's workspaces, flat (sized for the largest star of a call, n = L d unknowns of
 # reactions): the momentum matrix A (q, q), B^T W (q, n), the springs' constants (n,), the
@@ -102,10 +103,7 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, tol, ws):
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         for i in range(d):
-            s = 0.0
-            for j in range(d):
-                s += frame[l, i, j] * (x0[b * d + j] - x0[a * d + j])
-            c[l * d + i] = g_n[l, i] + dg[l, i] + h * s
+            c[l * d + i] = g_n[l, i] + dg[l, i] + h * frame_jump(d, frame, l, i, x0, a, b)
             for k in range(n):
                 s = 0.0
                 for j in range(d):

@@ -30,6 +30,16 @@ def evaluation(d, q_max, L_max):
                  np.empty(L_max, dtype=np.int8), np.empty(12 * d * d))
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def frame_jump(d, frame, l, i, v, a, b):
+    """Component i, in link l's frame (frame (L, d, d)), of the jump v_b - v_a of a copy field
+    v (copy-major, d per copy) between the link's copies a and b."""
+    s = 0.0
+    for j in range(d):
+        s += frame[l, i, j] * (v[b * d + j] - v[a * d + j])
+    return s
+
+
 @njit(cache=True, error_model="numpy")
 def _ratio(a, scale):
     """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from dolfrag.solver.active_set import CONTACT, STICK
-from dolfrag.solver.stars.residual import evaluate
+from dolfrag.solver.stars.residual import evaluate, frame_jump
 
 # The piece of a link that is closed and sticking (active_set.link_code).
 HELD = CONTACT | STICK
@@ -183,10 +183,7 @@ def rigid_solve(d, star, inverse, x, r, floor_m, floor_c, ev, rw):
     for l in range(L):
         a, b = slot_A[l], slot_B[l]
         for i in range(d):
-            s = 0.0
-            for j in range(d):
-                s += frame[l, i, j] * (lam[b * d + j] - lam[a * d + j])
-            r[l, i] = rho[l] * s / h
+            r[l, i] = rho[l] * frame_jump(d, frame, l, i, lam, a, b) / h
     return evaluate(d, star, x, r, floor_m, floor_c, ev)
 
 
