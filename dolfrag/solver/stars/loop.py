@@ -11,7 +11,7 @@ from dolfrag.solver.stars.newton import newton_space, solve_each
 from dolfrag.solver.stars.options import DEFAULT
 from dolfrag.solver.stars.ordering import unknown_orders
 from dolfrag.solver.stars.records import NONE, RIGID, Geometry, StepData, empty_cache, empty_outputs, star_at
-from dolfrag.solver.stars.rigid import held, rigid_inverses, rigid_space
+from dolfrag.solver.stars.rigid import all_held, rigid_inverses, rigid_space
 from dolfrag.solver.stars.residual import evaluation, evaluate
 
 
@@ -148,7 +148,7 @@ def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation, rigid):
         l1 = l0 + L
         evaluate(d, star, x[p0:p0 + q], r[l0:l1], 0.0, 0.0, ev)
         code, e = ev.code, ev.e
-        if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and held(code[:L]):
+        if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and all_held(code[:L]):
             cache.codes[l0:l1] = code[:L]  # no factors: the rigid path (stars/rigid.py) next
             cache.cached[s] = RIGID
             continue

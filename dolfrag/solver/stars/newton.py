@@ -16,8 +16,7 @@ from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import (APPROXIMATE, CONVERGED, EXACT, ITERATIONS, N_FIRST, N_STALLED,
                                           N_UNCONVERGED, NONE, RIGID, STALE, STALLED, UNCONVERGED, star_at)
 from dolfrag.solver.stars.residual import B_SCALE, evaluate
-from dolfrag.solver.stars.rigid import held as all_held
-from dolfrag.solver.stars.rigid import rigid_solve
+from dolfrag.solver.stars.rigid import all_held, rigid_solve
 
 # Newton's workspaces, sized for the largest star of a call (q_max components, L_max links,
 # N_max unknowns): the iterate (x, r); the piece and data the star started from (code_in,

@@ -130,9 +130,6 @@ def _block(n, slot_A, slot_B, k, fixed, out):
 @njit(cache=True, error_model="numpy")
 def _laplace(d, n, Q, v, out):
     """out = Q[j] v on each direction j of the copies (v, out (n d,), copy-major)."""
-    for i in range(n):
-        for j in range(d):
-            out[i * d + j] = 0.0
     for j in range(d):
         for i in range(n):
             s = 0.0
@@ -188,7 +185,7 @@ def rigid_solve(d, star, inverse, x, r, floor_m, floor_c, ev, rw):
 
 
 @njit(cache=True, error_model="numpy")
-def held(code):
+def all_held(code):
     """Whether every link of a piece ``code`` is closed and sticking."""
     for c in code:
         if c != HELD:
