@@ -11,6 +11,7 @@ from dolfrag.case import load_case
 from dolfrag.post import debris
 from dolfrag.rebar.layout import layer_polylines
 from test_slab import REDUCED
+from test_vtk_output import cell_means, fragments_grid
 
 G = debris.G
 RHO_AIR = 1.225  # kg/m^3
@@ -129,6 +130,27 @@ def test_fragments_csv_of_the_reduced_slab_sums_to_its_concrete_and_steel(slab):
     assert set(frags["group"]) == {"concrete"}
     # the crumbs left the slab before the end; the slab, held by its clamped edges, too
     assert np.all(frags["came_free_s"] <= case.time.end) and np.any(frags["held"] == 1)
+
+
+@pytest.mark.slow
+def test_fragments_pvd_gives_each_cell_its_row_of_fragments_csv(slab):
+    case, summary, frags, _, out = slab
+    grid, t = fragments_grid(out)
+    assert t == pytest.approx(case.time.end, rel=1e-12) and grid.n_cells == summary["cells"]
+    (_, conn), = grid.cells_dict.items()
+    for name in ("fragment", "held", "fragment_speed"):  # one value per cell, on each of its vertex copies
+        values = grid.point_data[name][conn]
+        assert np.array_equal(values, np.repeat(values[:, :1], values.shape[1], axis=1)), name
+    fragment = grid.point_data["fragment"][conn[:, 0]].astype(int)
+    assert np.array_equal(np.unique(fragment), frags["id"])
+    volume = np.abs(grid.compute_cell_sizes(length=False, area=False).cell_data["Volume"])
+    # each piece's cells make up its volume (fragments.csv: 10 printed digits)
+    np.testing.assert_allclose(np.bincount(fragment, weights=volume), frags["volume_m3"], rtol=1e-9)
+    assert np.array_equal(grid.point_data["held"][conn[:, 0]], frags["held"][fragment])
+    np.testing.assert_allclose(grid.point_data["fragment_speed"][conn[:, 0]], frags["speed_m_s"][fragment],
+                               rtol=1e-9)
+    _, u = cell_means(grid, "displacement")
+    assert np.abs(u).max() > 0  # the end state, not the reference
 
 
 def test_debris_csv_of_the_reduced_slab_follows_from_fragments_csv(slab):

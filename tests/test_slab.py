@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import mpirun
+from test_vtk_output import cell_means, fragments_grid
 
 # slab-3d-scabbing cut to 0.2 m x 0.2 m (943 tetrahedra at 30 mm), 22 steps to 25 us. With
 # sigma_c = 4 MPa the loaded face crumbles: ~780 broken links, ~18 fragments (measured).
@@ -116,6 +117,11 @@ def test_reduced_slab_writes_the_same_fragments_csv_and_debris_on_1_2_and_3_rank
             assert np.allclose(thrown[name], other_thrown[name], rtol=1e-7), (n, name)
         for key in ("thrown", "held", "hazardous", "hazard_distance_m"):
             assert other["debris"][key] == summary["debris"][key], (n, key)
+        # fragments.pvd: each cell once, in the same piece
+        (centroid, piece), (other_centroid, other_piece) = (
+            cell_means(fragments_grid(f)[0], "fragment") for f in (folder, other_folder))
+        np.testing.assert_allclose(other_centroid, centroid, atol=1e-12)
+        assert np.array_equal(other_piece, piece), n
 
 
 @pytest.mark.slow

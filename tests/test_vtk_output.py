@@ -23,6 +23,15 @@ def last_snapshot(out):
     return grid[0], json.loads((out / "summary.json").read_text())
 
 
+def fragments_grid(out):
+    """fragments.pvd's one snapshot (pyvista), and the time it was written at."""
+    reader = pv.get_reader(str(out / "fragments.pvd"))
+    assert len(reader.time_values) == 1
+    grid = reader.read()
+    assert grid.n_blocks == 1
+    return grid[0], reader.time_values[0]
+
+
 def cell_means(grid, name):
     """(sorted by centroid) cell centroids and the cell mean of a point field."""
     cells = grid.cells_dict

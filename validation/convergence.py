@@ -54,14 +54,14 @@ def run_dir(out, law, size):
     return out / f"{law}-h{size:g}"
 
 
-def run(case, law, size, end, ranks, out, extra=()):
-    """One run (skipped when its summary says completed, resumed from its checkpoint when
-    it says interrupted, on the same rank count); returns its folder."""
-    folder = run_dir(out, law, size)
+def run(case, folder, end, ranks, sets):
+    """One run of ``case`` to time.end = ``end`` (s) into ``folder`` with the overrides
+    ``sets`` (SECTION.KEY=VALUE): skipped when its summary says completed, resumed from its
+    checkpoint when it says interrupted, on the same rank count; returns the folder."""
     status, ranks_then, ran_to = state(folder)
     ran_to = end if ran_to is None else ran_to
     if not np.isclose(ran_to, end, rtol=1e-9, atol=0.0):
-        print(f"convergence.py: {folder} ran to time.end = {ran_to:g} s, not the {end:g} s asked; "
+        print(f"{Path(sys.argv[0]).name}: {folder} ran to time.end = {ran_to:g} s, not the {end:g} s asked; "
               "give another --out, or --end to match it", file=sys.stderr)
         sys.exit(2)
     if status == "completed":
@@ -71,9 +71,8 @@ def run(case, law, size, end, ranks, out, extra=()):
         ranks = ranks_then
         command = [str(dolfrag), "run", "--resume", str(folder), "--quiet"]
     else:
-        sets = [f"mesh.size={size}", f"time.end={end}", "output.figures=false", *CONCRETE, *LAWS[law], *extra]
         command = [str(dolfrag), "run", case, "--out", str(folder), "--overwrite", "--quiet"]
-        command += [arg for item in sets for arg in ("--set", item)]
+        command += [arg for item in [f"time.end={end}", *sets] for arg in ("--set", item)]
     command = ["mpirun", "-n", str(ranks), *command]
     env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
     print(" ".join(command), flush=True)
@@ -216,8 +215,10 @@ def main():
     for law in args.laws:
         rows, ends, folders = [], set(), []
         for size in sizes:
-            folder = run_dir(out, law, size) if args.table_only else run(study["case"], law, size, end,
-                                                                         args.ranks, out, args.set)
+            folder = run_dir(out, law, size)
+            if not args.table_only:
+                run(study["case"], folder, end, args.ranks,
+                    [f"mesh.size={size}", "output.figures=false", *CONCRETE, *LAWS[law], *args.set])
             if (folder / "summary.json").is_file():
                 rows.append((size, measures(folder)))
             if (folder / "history.csv").is_file():  # a run stopped, or still going: its history

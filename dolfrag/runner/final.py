@@ -6,10 +6,12 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
+from dolfrag import compat
 from dolfrag.post import fragment_sizes, fragment_table
 from dolfrag.post.figures import (DAMAGE_RANGE, SIGNED, broken_mesh_png, charge_png, exploded, figure_title,
                                   fragment_masses_png, signal_png)
 from dolfrag.post.output import dof_damage
+from dolfrag.post.vtk import FieldsFile
 
 # velocity_x.png: each fragment moved off the body's centre by this share of its centroid
 # offset, so that cracks a few micrometres wide show (Fig. 6 of the paper *Study and
@@ -32,13 +34,15 @@ class Final(NamedTuple):
 
 
 def finish(ctx, output, damage, wall_time, summary):
-    """The Final of a completed run; writes links.csv, fragments.csv and the summary's
-    fragments with the fit of their masses (of the pieces no support holds). Collective."""
+    """The Final of a completed run; writes links.csv, fragments.csv, fragments.pvd and the
+    summary's fragments with the fit of their masses (of the pieces no support holds).
+    Collective."""
     space, links, model = ctx.space, ctx.links, ctx.integ.model
     frags, fragment_of_cell = ctx.fragments(of_cells=True)
     pieces = fragment_table.fragment_table(space, ctx.problem.domain, ctx.case.supports, ctx.integ.m, frags,
                                            fragment_of_cell)
     output.table("fragments.csv", fragment_table.columns(space.gdim), fragment_table.rows(pieces))
+    _fragment_fields(ctx, output.out / "fragments.pvd", pieces, fragment_of_cell)
     axes = "xyz"[:space.gdim]
     table = output.links([*axes, *(f"n{a}" for a in axes), "weight", "damage", "broken", "break_time_s"],
                          np.column_stack([space.vertex_x[links.vertex][:, :space.gdim], links.normal, links.weight,
@@ -53,6 +57,23 @@ def finish(ctx, output, damage, wall_time, summary):
                             "size_distribution": fragment_sizes.block(free, "kg/m" if space.gdim == 2 else "kg")}
     dof_damage(space, links, model.damage(), damage)
     return Final(frags, fragment_of_cell, pieces, table, damage, wall_time, summary)
+
+
+def _fragment_fields(ctx, path, pieces, fragment_of_cell):
+    """fragments.pvd, one snapshot at the end: the displacement (m) and, on every cell, its
+    fragment (the row of fragments.csv), whether a support holds that fragment (0/1) and its
+    mean speed (m/s). Collective."""
+    space, integ = ctx.space, ctx.integ
+    owned = space.cell_dofs[:space.n_owned_cells]
+    per_cell = {"fragment": fragment_of_cell, "held": pieces.held[fragment_of_cell],
+                "fragment_speed": pieces.speed[fragment_of_cell]}
+    functions = [integ.u]
+    for name, values in per_cell.items():
+        f = compat.Function(compat.dg1_scalar_space(space.mesh))
+        f.name = name
+        f.x.array[owned] = np.asarray(values, dtype=float)[:, None]
+        functions.append(f)
+    FieldsFile(ctx.comm, path).write_function(functions, integ.t)
 
 
 def fragments_view(table):
