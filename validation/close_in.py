@@ -53,12 +53,18 @@ def cells(out):
     return grid, conn, grid.point_data["held"][first] == 0, grid.point_data["fragment"][first].astype(int)
 
 
-def face_area(grid, conn, chosen, z, tol=1e-9):
-    """The area (m^2, this model's) of the face z = const made of the chosen cells' facets."""
-    points = grid.points[conn]  # (cells, 4, 3), undeformed
+def face_facets(grid, conn, z, tol=1e-9):
+    """The cells with a facet on the face z = const (mask over the cells), and those facets'
+    corners (k, 3, 3), undeformed."""
+    points = grid.points[conn]  # (cells, 4, 3)
     on = np.abs(points[:, :, 2] - z) < tol
     tri = on.sum(axis=1) == 3
-    corners = points[tri][on[tri]].reshape(-1, 3, 3)
+    return tri, points[tri][on[tri]].reshape(-1, 3, 3)
+
+
+def face_area(grid, conn, chosen, z):
+    """The area (m^2, this model's) of the face z = const made of the chosen cells' facets."""
+    tri, corners = face_facets(grid, conn, z)
     area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
     return float(area[chosen[tri]].sum())
 
@@ -83,12 +89,11 @@ def measures(folder):
     grid, conn, gone, fragment = cells(folder)
     front, back = (face_area(grid, conn, gone, z) for z in (0.0, thickness))
     breach = SYMMETRY * through_area(grid, gone, thickness)
-    reach = np.zeros(len(pieces), dtype=bool)  # gone pieces with facets on both faces
+    reach = np.ones(len(pieces), dtype=bool)  # gone pieces with facets on both faces
     for z in (0.0, thickness):
-        on = (np.abs(grid.points[conn][:, :, 2] - z) < 1e-9).sum(axis=1) == 3
         touches = np.zeros(len(pieces), dtype=bool)
-        touches[fragment[on & gone]] = True
-        reach = touches if z == 0.0 else reach & touches
+        touches[fragment[face_facets(grid, conn, z)[0] & gone]] = True
+        reach &= touches
     plug_mass = SYMMETRY * pieces["mass_kg"][reach].sum()
     plug_speed = (pieces["mass_kg"][reach] @ pieces["vz_m_s"][reach] / pieces["mass_kg"][reach].sum()
                   if reach.any() else float("nan"))
@@ -126,9 +131,7 @@ def faces_png(folders, path, title):
         speed = grid.point_data["fragment_speed"][conn[:, 0]]
         thickness = float(np.ptp(grid.points[:, 2]))
         for ax, z, side in zip(row, (0.0, thickness), ("front (charge side)", "back")):
-            on = np.abs(grid.points[conn][:, :, 2] - z) < 1e-9
-            tri = on.sum(axis=1) == 3
-            corners = grid.points[conn][tri][on[tri]].reshape(-1, 3, 3)
+            tri, corners = face_facets(grid, conn, z)
             ax.add_collection(matplotlib.collections.PolyCollection(
                 corners[~gone[tri], :, :2], facecolor="0.85", edgecolor="0.6", linewidth=0.1))
             shown = matplotlib.collections.PolyCollection(corners[gone[tri], :, :2], cmap="viridis",
