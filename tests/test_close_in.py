@@ -13,7 +13,7 @@ import close_in  # noqa: E402
 
 
 def _box(length=0.4, width=0.3, thickness=0.15, n=(8, 6, 3)):
-    """A box of tetrahedra (each brick cut in five or six), corner at the origin."""
+    """A box of n bricks, each cut into tetrahedra, corner at the origin."""
     grid = pv.ImageData(dimensions=[k + 1 for k in n]).triangulate()  # unit bricks: float32 points, exact
     grid.points = grid.points.astype(np.float64) * np.array([length / n[0], width / n[1], thickness / n[2]])
     (_, conn), = grid.cells_dict.items()
@@ -25,7 +25,7 @@ def test_face_areas_are_the_chosen_cells_facets():
     everything = np.ones(len(conn), dtype=bool)
     for z in (0.0, 0.15):  # each face of the box once
         assert close_in.face_area(grid, conn, everything, z) == pytest.approx(0.4 * 0.3, rel=1e-12)
-    # the bricks with x < 0.1 and y < 0.15: a quarter of the width, half the length of the face
+    # the bricks with x < 0.1 and y < 0.15: a quarter of the face's length, half its width
     corner = (centroid[:, 0] < 0.1) & (centroid[:, 1] < 0.15)
     assert close_in.face_area(grid, conn, corner, 0.0) == pytest.approx(0.1 * 0.15, rel=1e-12)
     assert close_in.face_area(grid, conn, corner, 0.075) == 0.0  # no face there
