@@ -23,6 +23,7 @@ def _box(length=0.4, width=0.3, thickness=0.15, n=(8, 6, 3)):
 def test_face_areas_are_the_chosen_cells_facets():
     grid, conn, centroid = _box()
     everything = np.ones(len(conn), dtype=bool)
+    # areas summed from float64 facets whose corners are exact multiples of the brick: round-off
     for z in (0.0, 0.15):  # each face of the box once
         assert close_in.face_area(grid, conn, everything, z) == pytest.approx(0.4 * 0.3, rel=1e-12)
     # the bricks with x < 0.1 and y < 0.15: a quarter of the face's length, half its width
@@ -34,7 +35,8 @@ def test_face_areas_are_the_chosen_cells_facets():
 def test_the_breach_is_where_every_depth_is_chosen():
     grid, conn, centroid = _box()
     column = (centroid[:, 0] < 0.1) & (centroid[:, 1] < 0.15)  # through the whole thickness
-    # lines 5 mm apart from 2.5 mm in: 20 x 30 of them fall in the 0.1 x 0.15 m column
+    # lines 5 mm apart from 2.5 mm in: 20 x 30 of them fall in the 0.1 x 0.15 m column, none on
+    # a brick's edge, so the count is exact and the area 600 x 25e-6 m^2 to round-off
     assert close_in.through_area(grid, column, 0.15) == pytest.approx(0.1 * 0.15, rel=1e-12)
     # the same column without its back layer of bricks: a spall-less crater, no breach
     crater = column & (centroid[:, 2] < 0.1)

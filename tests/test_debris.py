@@ -136,6 +136,7 @@ def test_fragments_csv_of_the_reduced_slab_sums_to_its_concrete_and_steel(slab):
 def test_fragments_pvd_gives_each_cell_its_row_of_fragments_csv(slab):
     case, summary, frags, _, out = slab
     grid, t = fragments_grid(out)
+    # the snapshot's time is the run's last t, n_steps dt: time.end to the round-off of that product
     assert t == pytest.approx(case.time.end, rel=1e-12) and grid.n_cells == summary["cells"]
     (_, conn), = grid.cells_dict.items()
     for name in ("fragment", "held", "fragment_speed"):  # one value per cell, on each of its vertex copies

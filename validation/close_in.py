@@ -14,8 +14,9 @@ one is resumed (validation/convergence.py's rules).
 
 What is read from a run's fragments.pvd (the end state, each cell with its fragment and
 whether a support holds it): a cell is *gone* where its fragment is loose (no support holds it:
-thrown off the slab, or hanging on the bars, which do not hold pieces together). Areas are of
-the whole slab (twice the half modelled), m^2:
+thrown off the slab, or hanging on the bars, which do not hold pieces together). Areas (m^2)
+and masses (kg) are of the whole slab, twice the half modelled; the count of loose pieces is
+of the half:
 
 * crater and spall: the area of the front (charge side, z = 0) and back face made of gone cells,
   also as a share of the tested slab's face (4.40 x 1.46 m, its overhangs on the supports
@@ -45,7 +46,8 @@ LEVELS = 12  # depths sampled on each line, at the centres of LEVELS equal layer
 
 
 def cells(out):
-    """fragments.pvd's grid and, per cell, whether its piece is loose (gone), its fragment and speed."""
+    """fragments.pvd's grid, its cells' vertex copies (conn), and per cell whether its piece
+    is loose (gone) and which fragment it is in."""
     reader = pv.get_reader(str(out / "fragments.pvd"))
     grid = reader.read()[0]
     (_, conn), = grid.cells_dict.items()

@@ -67,9 +67,9 @@ def _fragment_fields(ctx, path, pieces, fragment_of_cell):
     owned = space.cell_dofs[:space.n_owned_cells]
     per_cell = {"fragment": fragment_of_cell, "held": pieces.held[fragment_of_cell],
                 "fragment_speed": pieces.speed[fragment_of_cell]}
-    functions = [integ.u]
+    V, functions = compat.dg1_scalar_space(space.mesh), [integ.u]
     for name, values in per_cell.items():
-        f = compat.Function(compat.dg1_scalar_space(space.mesh))
+        f = compat.Function(V)
         f.name = name
         f.x.array[owned] = np.asarray(values, dtype=float)[:, None]
         functions.append(f)
