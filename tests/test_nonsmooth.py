@@ -1,7 +1,6 @@
 """The nonsmooth imex step (solver/semismooth.py): RCCM cohesion, exact unilateral
 contact, energy bookkeeping, rank independence."""
 import json
-import sys
 
 import numpy as np
 import pytest
@@ -201,31 +200,41 @@ def test_internal_friction_keeps_the_pressed_loaded_end_of_be12_whole(tmp_path):
     assert broken[0.0] > 10 and broken[1.0] == 0
 
 
-@pytest.mark.mpi
-def test_a_star_left_to_the_second_pass_starts_there_next_step_with_the_same_answer(tmp_path, monkeypatch):
-    # benchmarks/hard_stars.py's cracking 3D box: from ~40 us some rigid 3D stars with
-    # friction need the second pass at step after step (semismooth.REMEMBER). Starting them
-    # there changes no star's acceptance rule, so the run must break the same links, and
-    # the energies may move only by what stars accepted within give_up leave: 1e-6 of a
-    # star's scale, so 1e-6 of the largest energy (measured: 2e-8 here, 2e-11 on the
-    # cracked bunker-wall-panel).
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    from hard_stars import BOX
+def test_a_star_left_to_the_second_pass_starts_there_until_the_second_pass_solves_it():
+    """semismooth.REMEMBER over three steps of two stars, the kernel replaced by a script:
+    star 0 is left unsolved by the first pass and accepted within give_up (STALLED) by the
+    second, so it skips the first pass of the next step and starts in the second, which
+    solves it to rtol; the step after, it is back in the first pass. Star 1 is solved by the
+    first pass every step. (Since held links are stiff joints, no built-in case or benchmark
+    leaves a star to the second pass step after step: bunker-h2 starts 2 star solves there in
+    3,196 steps, against 8,027 with rigid links.)"""
+    from types import SimpleNamespace
 
     from dolfrag.solver import semismooth
-    overrides = [*BOX, "time.end=5e-5"]
-    remembered = run(load_case("sound-bar", overrides), tmp_path / "remembered", quiet=True, comm=MPI.COMM_SELF)
-    monkeypatch.setattr(semismooth, "REMEMBER", False)
-    every_step = run(load_case("sound-bar", overrides), tmp_path / "first", quiet=True, comm=MPI.COMM_SELF)
-    assert remembered["second_pass_starts"] > 10 and every_step["second_pass_starts"] == 0
-    assert remembered["broken_links"] == every_step["broken_links"] > 50
-    scale = max(abs(v) for v in every_step["energies_J"].values())
-    for key, value in every_step["energies_J"].items():
-        assert remembered["energies_J"][key] == pytest.approx(value, rel=0, abs=1e-6 * scale), key
-    # two ranks hold whole stars and remember their own: the same run
-    sets = [arg for item in overrides for arg in ("--set", item)]
-    mpirun(["-m", "dolfrag.cli", "run", "sound-bar", "--quiet", "--out", tmp_path / "two", *sets], n=2)
-    two = json.loads((tmp_path / "two" / "summary.json").read_text())
-    assert two["second_pass_starts"] > 10 and two["broken_links"] == remembered["broken_links"]
-    for key, value in remembered["energies_J"].items():
-        assert two["energies_J"][key] == pytest.approx(value, rel=0, abs=1e-6 * scale), key
+    from dolfrag.solver.star_kernel import CONVERGED, DEFAULT, N_UNCONVERGED, STALLED, UNCONVERGED
+    # what each pass makes of star 0, per step: first pass (None: not in it), second pass
+    script = [(UNCONVERGED, STALLED), (None, CONVERGED), (CONVERGED, None)]
+    step = SimpleNamespace(options=DEFAULT, escalation=semismooth.ESCALATION, max_iterations=DEFAULT.max_iterations,
+                           remember=True, remembered=0, stars=SimpleNamespace(gdim=2),
+                           status=np.zeros(2, np.int8), _counters=np.zeros(4, np.int64), _hard=np.zeros(2, bool),
+                           _first=np.zeros(2, bool), _second=np.zeros(2, bool))
+    step._solve_unconverged_again = lambda solve: semismooth.StarNewton._solve_unconverged_again(step, solve)
+    for first, second in script:
+        todos = []
+
+        def solve_stars(options, todo):
+            second_pass = options.max_iterations > DEFAULT.max_iterations
+            todos.append((second_pass, todo.copy()))
+            step.status[todo] = CONVERGED
+            if todo[0]:
+                step.status[0] = second if second_pass else first
+            step._counters[N_UNCONVERGED] = np.count_nonzero(step.status == UNCONVERGED)
+
+        semismooth.StarNewton._passes(step, solve_stars, np.zeros(1, np.int8))
+        assert not todos[0][0] and list(todos[0][1]) == [first is not None, True]
+        assert [t[0] for t in todos] == [False] + [True] * (second is not None)
+        if second is not None:
+            assert list(todos[1][1]) == [True, False]
+    assert step.remembered == 1 and not step._hard.any()
+
+

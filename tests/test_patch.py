@@ -17,6 +17,7 @@ from dolfrag import compat
 from dolfrag.case import load_case
 from dolfrag.interface.stars import Stars
 from dolfrag.problem import Problem
+from dolfrag.solver.active_set import COMPLIANCE
 from dolfrag.solver.imex import Imex
 from dolfrag.solver.semismooth import step_stiffness
 
@@ -153,18 +154,26 @@ def test_linear_softening_follows_its_secant_and_dissipates_G_c():
                                  ["interface.law=linear_softening", f"interface.sigma_c={SIGMA_C}",
                                   "interface.G_c=50"]], ids=["rccm", "threshold", "linear_softening"])
 def test_a_cell_pushed_into_a_free_one_never_interpenetrates(law):
+    """RCCM's intact link is exact contact in compression: the gap never closes past zero.
+    An intact link of a rigid cohesive law (threshold, linear softening) is a stiff elastic
+    joint (active_set.COMPLIANCE): pressed by r_N it closes by exactly COMPLIANCE r_N / rho,
+    its elastic compression, and no further."""
     case, integ, links, comps = two_cells(law, held=("A",))
     n = links.normal[0]
     A = comps["A"]
     V = 1.0  # m/s, A driven towards B
     integ.impose(A, lambda t: np.tile(V * n, len(A) // len(n)))
-    worst = 0.0
+    joint = 0.0 if "rccm" in law[0] else COMPLIANCE / step_stiffness(links, integ.m, integ.h, 2)  # m/Pa
+    worst, pressed = 0.0, 0.0
     for _ in range(50):
         integ.step()
-        worst = min(worst, integ.jump.local(integ.jump(integ.u.x.array))[0].min())
+        g_N, r_N = integ.jump.local(integ.jump(integ.u.x.array))[0], integ.interface.r[:, 0]
+        worst = min(worst, (g_N + joint * np.maximum(r_N, 0.0)).min())
+        pressed = max(pressed, r_N.max())
     # B has been pushed along (its copies ring elastically about A's speed)
     B = comps["B"]
     assert np.mean(integ.v.x.array[B].reshape(-1, 2) @ n) > 0.5 * V
+    assert pressed > 0
     # the gap is enforced to the Newton tolerance, ~1e-10 of r / rho (semismooth.py), far
     # below the 50 h V = 8e-5 m that A travelled
     assert worst >= -1e-12 * 50 * integ.h * V

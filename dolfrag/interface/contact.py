@@ -54,7 +54,8 @@ class Branches(NamedTuple):
         return np.where(self.contact, np.where(self.stick, STICK, SLIP), OPEN)
 
 
-def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
+def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0, compliance_N=0.0,
+                              compliance_T=0.0, r_T_ref=0.0):
     """Alart-Curnier residuals of Signorini-Coulomb (Alart & Curnier 1991; docs/method.md, "Interface laws").
 
     symbol    meaning                                            unit        shape
@@ -68,12 +69,19 @@ def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, 
     mu        friction coefficient (mu (1 - beta) for RCCM)      -           scalar or (n,)
     shift     cohesion: R_c for an intact threshold link, else 0 Pa          scalar or (n,)
     cohesion_T  shear cohesion: radius of the cone at r~_N = 0 Pa          scalar or (n,)
+    compliance_N  the normal compliance of a closed link             m/Pa        scalar or (n,)
+    compliance_T  the tangential compliance of a sticking link       m/Pa        scalar or (n,)
+    r_T_ref   the tangential reaction the step starts from           Pa          (n, d-1) or scalar
 
     Shifted Signorini on r~_N = r_N + shift:  r~_N >= 0, g_N >= 0, r~_N g_N = 0;
     Coulomb on the shifted cone:  |r_T| <= s = mu r~_N + cohesion_T, and r_T = -s v/|v| when
     slipping (cohesion_T = 0 but for a rigid linear-softening link, interface/models.py).
     phi_N = r~_N - proj_R+(r~_N - rho_N g_N)  =  r_N - max(-shift, r_N - rho_N g_N)
     phi_T = r_T - proj_D(r_T - rho_T g_T_rate),  D = disc of radius mu max(r~_N, 0) + cohesion_T
+    With compliances the link is an elastic joint where it holds: the conditions act on
+    g_N + compliance_N r_N and on g_T_rate + compliance_T (r_T - r_T_ref), so a closed link
+    opens or closes by compliance_N r_N and a sticking one slips by compliance_T times its
+    change of reaction (solver/active_set.COMPLIANCE says why and how stiff).
     Both vanish exactly when the conditions hold. rho only scales the Newton steps: a value
     of the order of the interface stiffness (C_N or E/h) balances reactions and gaps.
     Branches: contact where r~_N - rho_N g_N >= 0 (else open); with y = r_T - rho_T
@@ -88,11 +96,12 @@ def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, 
     rho_T = np.asarray(rho_T, dtype=float)[..., None]
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
     r_shift = r_N + shift
-    y_N = r_shift - rho_N * g_N
+    y_N = r_shift - rho_N * (g_N + compliance_N * r_N)
     contact = y_N >= 0
     phi_N = r_shift - np.maximum(0.0, y_N)
     pressed = r_shift > 0
     radius = mu * np.where(pressed, r_shift, 0.0) + cohesion_T
+    v = v + np.asarray(compliance_T, dtype=float)[..., None] * (r_T - r_T_ref)  # the slip of the joint's slider
     y = r_T - rho_T * v
     norm_y = np.linalg.norm(y, axis=-1)
     cone = radius > 0
@@ -104,7 +113,7 @@ def contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, 
     return phi_N, phi_T, Branches(contact, stick, slip, pressed, e, scale)
 
 
-def projection_jacobian(branches, rho_N, rho_T, mu):
+def projection_jacobian(branches, rho_N, rho_T, mu, compliance_N=0.0, compliance_T=0.0):
     """Generalised Jacobian of (phi_N, phi_T) on the given Branches (same arguments as
     contact_friction_residual); mu is treated as fixed (no derivative)."""
     contact, stick, slip, pressed, e, scale = branches
@@ -113,23 +122,25 @@ def projection_jacobian(branches, rho_N, rho_T, mu):
     rho_T = np.asarray(rho_T, dtype=float)[..., None]
     mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
     eye = np.eye(m)
+    soft_T = (rho_T * np.asarray(compliance_T, dtype=float)[..., None])[..., None]  # rho c, -
     # slip: d(y/|y|)/dy = (I - e e^T) / |y|
     P = scale[:, None, None] * (eye - e[:, :, None] * e[:, None, :])
-    dT_drT = np.where(stick[:, None, None], 0.0, eye - P)
+    dT_drT = np.where(stick[:, None, None], soft_T * eye, eye - (1 - soft_T) * P)
     dT_dgT = rho_T[..., None] * np.where(stick[:, None, None], eye, P)
     dT_drN = -(mu * (slip & pressed))[:, None] * e
     zeros = np.zeros((n, m))
-    return ProjectionJacobian(np.where(contact, 0.0, 1.0), zeros, np.where(contact, rho_N, 0.0),
+    return ProjectionJacobian(np.where(contact, rho_N * compliance_N, 1.0), zeros, np.where(contact, rho_N, 0.0),
                               zeros, dT_drN, dT_drT, zeros, dT_dgT)
 
 
-def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0):
+def contact_friction_projection(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift, cohesion_T=0.0, compliance_N=0.0,
+                                compliance_T=0.0, r_T_ref=0.0):
     """contact_friction_residual with its projection_jacobian and the status (n,) int:
     0 = open (OPEN), 1 = stick (STICK), 2 = slip (SLIP); a link is open when the normal
     branch is. Returns phi_N, phi_T, a ProjectionJacobian, status."""
     phi_N, phi_T, branches = contact_friction_residual(r_N, r_T, g_N, g_T_rate, rho_N, rho_T, mu, shift,
-                                                       cohesion_T)
-    return phi_N, phi_T, projection_jacobian(branches, rho_N, rho_T, mu), branches.status
+                                                       cohesion_T, compliance_N, compliance_T, r_T_ref)
+    return phi_N, phi_T, projection_jacobian(branches, rho_N, rho_T, mu, compliance_N, compliance_T), branches.status
 
 
 def link_blocks(NN, NT, TN, TT):

@@ -83,13 +83,14 @@ class _Model:
         """``springs`` with the trial state in place of state_n."""
         return self.springs(g_N, g_T, state_n)._replace(state=self.trial_state(g_N, g_T, state_n, r_N))
 
-    def advance(self, links, gbar, g_mid, r_N):
+    def advance(self, links, gbar, g_mid, r_N, opening=None):
         """Take a step on the links ``links`` (n,): the trial state at the springs' jumps
         gbar (n, d), with the contact pressure r_N (n,) (Pa), accepted by ``store`` with the
-        jumps g_mid (n, d) (link frame, m). Returns the positions (into links) whose state
-        changed."""
+        jumps g_mid (n, d) (link frame, m), or with ``opening`` (n, d) where the law's opening
+        differs from them (g_mid less a rigid link's elastic joint: solver/active_set.py's
+        COMPLIANCE). Returns the positions (into links) whose state changed."""
         before = self.state_at(links)
-        self.store(links, self.trial_state(gbar[:, 0], gbar[:, 1:], before, r_N), g_mid[:, 0], g_mid[:, 1:])
+        self.store(links, self.trial_state(gbar[:, 0], gbar[:, 1:], before, r_N), g_mid[:, 0], g_mid[:, 1:], opening)
         return np.flatnonzero(self.state_at(links) != before)
 
 
@@ -165,10 +166,10 @@ class Rccm(_Model):
         condition beta_n Y' > w alike); inf for a broken link."""
         return np.divide(self.w, beta_n, out=np.full(np.shape(beta_n), np.inf), where=beta_n > 0)
 
-    def store(self, links, state, g_N, g_T):
+    def store(self, links, state, g_N, g_T, opening=None):
         """Accept the converged state of the links (n,); g_N (n,), g_T (n, d-1): the
         link-frame jumps (g_n + g_{n+1}) / 2 (m), where the energy of the step is stored
-        (solver/imex.py).
+        (solver/imex.py); no link of RCCM is rigid, so ``opening`` is not read.
 
         With damage lagged by one step the traction used beta_n, so the drop to beta frees
         the elastic energy 1/2 (beta_n^2 - beta^2)(C_N <g_N>+^2 + C_T |g_T|^2): that is the
@@ -176,9 +177,9 @@ class Rccm(_Model):
         and exceeds it when a link fails within a step). Compiled (rccm_kernel.store)."""
         rccm_kernel.store(links, state, g_N, g_T, float(self.C_N), float(self.C_T), self.beta, self.released)
 
-    def advance(self, links, gbar, g_mid, r_N):
+    def advance(self, links, gbar, g_mid, r_N, opening=None):
         """_Model.advance in one compiled pass (rccm_kernel.advance: trial_state and store's
-        arithmetic)."""
+        arithmetic); no link of RCCM is rigid, so ``opening`` is g_mid."""
         changed = np.empty(len(links), dtype=np.int64)
         count = rccm_kernel.advance(links, gbar, g_mid, r_N, float(self.C_N), float(self.C_T), float(self.w),
                                     float(self.b), float(self.h or 0.0), float(self.mu_i), THRESHOLD_MARGIN,
@@ -312,10 +313,12 @@ class Threshold(_Rigid):
         """No springs: the whole law is in the shifted contact constraint."""
         return np.zeros(len(lost_n)), np.zeros(len(lost_n))
 
-    def store(self, links, state, g_N, g_T):
-        """Break the links (n,) whose mid-step gap g_N (n,) passed W_eth (the trial ``state``
-        is not used: this law's state follows from the converged gap)."""
-        broken = laws.threshold(g_N, self.lost[links] > 0, self.R_c, self.W_eth)[1]
+    def store(self, links, state, g_N, g_T, opening=None):
+        """Break the links (n,) whose mid-step gap g_N (n,), or opening[:, 0] where given
+        (_Model.advance), passed W_eth (the trial ``state`` is not used: this law's state
+        follows from the converged gap)."""
+        gap = g_N if opening is None else opening[:, 0]
+        broken = laws.threshold(gap, self.lost[links] > 0, self.R_c, self.W_eth)[1]
         newly = links[broken & (self.lost[links] == 0)]
         self.released[newly] += self.work[newly]
         self.work[newly] = 0.0
@@ -454,12 +457,13 @@ class LinearSoftening(_Rigid):
     def _psi(self, g_N, g_T):
         return np.maximum(g_N, 0.0) ** 2 + self.a_T * np.sum(g_T**2, axis=-1)
 
-    def store(self, links, state, g_N, g_T):
-        """delta_max of the links (n,) from the mid-step jumps g_N (n,), g_T (n, d-1);
-        switch the links past delta_open to their springs; book the released energy (the
-        trial ``state`` is not used)."""
+    def store(self, links, state, g_N, g_T, opening=None):
+        """delta_max of the links (n,) from the mid-step jumps g_N (n,), g_T (n, d-1), or
+        from ``opening`` (n, d) where given (_Model.advance); switch the links past
+        delta_open to their springs; book the released energy at g_N, g_T (the trial
+        ``state`` is not used)."""
         old, was = self.delta_max[links], self.sprung[links]
-        delta = self._delta(g_N, g_T)
+        delta = self._delta(g_N, g_T) if opening is None else self._delta(opening[:, 0], opening[:, 1:])
         new = np.where(delta > OPENING_TOLERANCE * self.delta_c(links), np.maximum(old, delta), old)
         now = was | (new > self.delta_open(links))
         switching = now & ~was
@@ -471,11 +475,12 @@ class LinearSoftening(_Rigid):
         self.delta_max[links] = new
         self.sprung[links] = now
 
-    def advance(self, links, gbar, g_mid, r_N):
+    def advance(self, links, gbar, g_mid, r_N, opening=None):
         """_Model.advance in one compiled pass (softening_kernel.advance: store's arithmetic;
         the trial state is the state before, which store does not read)."""
         changed = np.empty(len(links), dtype=np.int64)
-        count = softening_kernel.advance(links, g_mid, self.beta_ratio**2 / self.kappa**2, float(self.a_T),
+        count = softening_kernel.advance(links, g_mid if opening is None else opening, g_mid,
+                                         self.beta_ratio**2 / self.kappa**2, float(self.a_T),
                                          OPENING_TOLERANCE, self.sigma_c, self._delta_c, self._delta_open,
                                          self.delta_max, self.sprung, self.work, self.released, changed)
         return changed[:count]

@@ -19,10 +19,11 @@ def _secant(state, sigma_c, delta_c):
 
 
 @njit(cache=True, error_model="numpy")
-def advance(links, g_mid, shear, a_T, tolerance, sigma_c, delta_c, delta_open, delta_max, sprung, work, released,
-            changed):
+def advance(links, opening, g_mid, shear, a_T, tolerance, sigma_c, delta_c, delta_open, delta_max, sprung, work,
+            released, changed):
     """LinearSoftening.store on the links ``links`` (n,) at their mid-step jumps g_mid (n, d)
-    (link frame, m), in place on the model's per-link arrays (sigma_c Pa, delta_c and
+    (link frame, m), their opening read at ``opening`` (n, d) (m: g_mid less a rigid link's
+    elastic joint), in place on the model's per-link arrays (sigma_c Pa, delta_c and
     delta_open m: read; delta_max m, sprung bool, work and released J/m^2: updated); shear
     = beta_ratio^2 / kappa^2 and a_T the law's weights of the tangential jump in the opening
     and in the energy; tolerance = OPENING_TOLERANCE. Writes into ``changed`` the positions
@@ -31,14 +32,14 @@ def advance(links, g_mid, shear, a_T, tolerance, sigma_c, delta_c, delta_open, d
     for i in range(len(links)):
         l = links[i]
         old, was = delta_max[l], sprung[l]
-        sliding = 0.0
+        sliding, opened = 0.0, 0.0
         for k in range(1, g_mid.shape[1]):
             sliding += g_mid[i, k] ** 2
-        opening = max(g_mid[i, 0], 0.0) ** 2
-        delta = np.sqrt(shear * sliding + opening)
+            opened += opening[i, k] ** 2
+        delta = np.sqrt(shear * opened + max(opening[i, 0], 0.0) ** 2)
         new = max(old, delta) if delta > tolerance * delta_c[l] else old
         now = was or new > delta_open[l]
-        psi = opening + a_T * sliding
+        psi = max(g_mid[i, 0], 0.0) ** 2 + a_T * sliding
         S_new = _secant(new, sigma_c[l], delta_c[l])
         if now and not was:
             released[l] += work[l] - 0.5 * S_new * psi
@@ -56,5 +57,5 @@ def warm():
     """Compile the loop into numba's cache (2D and 3D jumps, as the star solver passes them)."""
     for d in (2, 3):
         one = np.ones(1)
-        advance(np.zeros(1, dtype=np.int64), np.ones((1, d)), 1.0, 1.0, 1e-9, one, one, one, np.zeros(1),
+        advance(np.zeros(1, dtype=np.int64), np.ones((1, d)), np.ones((1, d)), 1.0, 1.0, 1e-9, one, one, one, np.zeros(1),
                 np.zeros(1, dtype=np.bool_), np.zeros(1), np.zeros(1), np.zeros(1, dtype=np.int64))

@@ -31,6 +31,17 @@ from numba import njit
 
 CONTACT, STICK, SLIP, PRESSED, NEGATIVE, SPRING = 1, 2, 4, 8, 16, 32
 
+# A held link is a stiff elastic joint, not a rigid one: its compliance is COMPLIANCE / rho
+# (m/Pa; rho = m / (h^2 w) the link's step stiffness, Pa/m, about 3 E / h_mesh at the stable
+# step: a joint ~3,000 times stiffer than a cell of the bulk). A sticking link's tangential
+# reaction moves from the step before's, r_n, with its slip as the spring rho / COMPLIANCE,
+# and a closed link with tensile strength left (shift > 0: a rigid cohesive link) opens or
+# closes by COMPLIANCE r_N / rho; broken links keep exact contact. Rigid, the reactions of a
+# ring of sticking links around a vertex were determined only up to self-equilibrated rings:
+# the Jacobian was singular there, and Newton stalled on such stars (the hard stars of
+# the cracking 3D runs; measured before and after in docs/notes/performance-history.md).
+COMPLIANCE = 1e-3
+
 
 @njit(cache=True, error_model="numpy")
 def link_code(contact, stick, slip, pressed, e_0, gbar_N):
@@ -43,6 +54,26 @@ def link_code(contact, stick, slip, pressed, e_0, gbar_N):
     code = CONTACT * contact + STICK * stick + SLIP * slip + PRESSED * (slip and pressed)
     code += SPRING * (gbar_N > 0 and not contact) + NEGATIVE * (slip and e_0 < 0)
     return np.int8(code)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def tangential_compliance(frozen):
+    """A link's tangential compliance relative to its rho (see COMPLIANCE): none if frozen."""
+    return 0.0 if frozen else COMPLIANCE
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def normal_compliance(frozen, shift):
+    """A link's normal compliance relative to its rho while closed (see COMPLIANCE): only a
+    rigid cohesive link's (shift > 0, Pa); broken links keep exact contact."""
+    return COMPLIANCE if shift > 0 and not frozen else 0.0
+
+
+def joint_compliance(shift, rho, frozen):
+    """The compliance (m/Pa, (n,)) of the links' joints that stand for a law's rigid link
+    (shift > 0, Pa; rho the links' step stiffness, Pa/m): their elastic jump, -compliance r,
+    is the joint's, not the law's (see COMPLIANCE); 0 on the other links."""
+    return np.where((shift > 0) & ~frozen, COMPLIANCE / rho, 0.0)
 
 
 @njit(cache=True, error_model="numpy")
@@ -87,7 +118,7 @@ def affine_constant(d, star, code, slip_dir, c):
         radius0 = mu[l] * shift[l] * ((cd & PRESSED) > 0) + cohesion_T[l]
         for i in range(1, d):
             if cd & STICK:
-                c[q + i * L + l] = rho[l] * dg[l, i]
+                c[q + i * L + l] = rho[l] * dg[l, i] - tangential_compliance(star.frozen[l]) * star.r_n[l, i]
             elif cd & SLIP:  # in 2D the direction is the piece's; in 3D the held one
                 e = (-1.0 if cd & NEGATIVE else 1.0) if d == 2 else slip_dir[l, i - 1]
                 c[q + i * L + l] = -e * radius0

@@ -65,30 +65,35 @@ def reaction_work(r_N, r_T, dg, shift, cohesion_T):
     Compiled, one loop over the links: in numpy these were a dozen calls a step."""
     n = dg.shape[0]
     dissipated, stored = np.empty(n), np.empty(n)
+    rigid = np.zeros(dg.shape[1])  # no joint (the theta step's links are rigid)
     for l in range(n):
-        dissipated[l], stored[l] = _link_work(r_N[l], r_T[l], dg[l], shift[l], cohesion_T[l])
+        dissipated[l], stored[l] = _link_work(r_N[l], r_T[l], dg[l], rigid, shift[l], cohesion_T[l])
     return dissipated, stored
 
 
 @njit(cache=True, error_model="numpy", inline="always")  # called per link: inlined, see rccm_kernel
-def _link_work(r_N, r_T, dg, shift, cohesion_T):
-    """(dissipated, stored) of one link (J/m^2), as reaction_work: r_T (d-1,), dg (d,)."""
-    slip, tangential = 0.0, 0.0
+def _link_work(r_N, r_T, dg, dg_el, shift, cohesion_T):
+    """(dissipated, stored) of one link (J/m^2), as reaction_work: r_T (d-1,), dg (d,);
+    dg_el (d,) m the part of dg that is a rigid link's elastic joint (solver/active_set.py's
+    COMPLIANCE): its work is stored too, and the cohesion works on the rest, the law's."""
+    slip, tangential, elastic = 0.0, 0.0, r_N * dg_el[0]
     for i in range(1, len(dg)):
-        slip += dg[i] ** 2
+        slip += (dg[i] - dg_el[i]) ** 2
         tangential += r_T[i - 1] * dg[i]
-    stored = shift * dg[0] + cohesion_T * np.sqrt(slip)
+        elastic += r_T[i - 1] * dg_el[i]
+    stored = shift * (dg[0] - dg_el[0]) + cohesion_T * np.sqrt(slip) - elastic
     return -(r_N * dg[0] + tangential) - stored, stored
 
 
 @njit(cache=True, error_model="numpy")
-def book_reaction_work(r, slip, slip_before, shift, cohesion_T, weight, links, absorbed):
+def book_reaction_work(r, slip, slip_before, elastic, shift, cohesion_T, weight, links, absorbed):
     """The work of a step's contact reactions r (n, d) (Pa, link frame) over the jump
     increments of this step and the last, slip + slip_before (n, d) (m: h B v_{n+1/2} and
     h B v_{n-1/2}), taken as a midpoint: -r . (g_{n+1} - g_{n-1}) / 2 per link, split by
-    reaction_work. Writes absorbed[links] = the stored part (J/m^2), copies slip into
-    slip_before for the next step, and returns the dissipated part summed with the links'
-    weights (J, J/m in 2D)."""
+    reaction_work, with elastic (n, d) (m) the rigid links' joints' part of those increments
+    (stored with the cohesion's work: _link_work). Writes absorbed[links] = the stored part
+    (J/m^2), copies slip into slip_before for the next step, and returns the dissipated part
+    summed with the links' weights (J, J/m in 2D)."""
     n, d = r.shape
     dg = np.empty(d)
     total = 0.0
@@ -96,7 +101,7 @@ def book_reaction_work(r, slip, slip_before, shift, cohesion_T, weight, links, a
         for i in range(d):
             dg[i] = slip[l, i] + slip_before[l, i]
             slip_before[l, i] = slip[l, i]
-        dissipated, stored = _link_work(r[l, 0], r[l, 1:], dg, shift[l], cohesion_T[l])
+        dissipated, stored = _link_work(r[l, 0], r[l, 1:], dg, elastic[l], shift[l], cohesion_T[l])
         total += 0.5 * weight[l] * dissipated
         absorbed[links[l]] = 0.5 * stored
     return total
@@ -108,5 +113,5 @@ def warm():
     for d in (2, 3):
         r, dg = np.zeros((1, d)), np.zeros((1, d))
         reaction_work(r[:, 0], r[:, 1:], dg, np.zeros(1), np.zeros(1))
-        book_reaction_work(r, dg, dg.copy(), np.zeros(1), np.zeros(1), np.ones(1), np.zeros(1, dtype=np.int64),
+        book_reaction_work(r, dg, dg.copy(), dg.copy(), np.zeros(1), np.zeros(1), np.ones(1), np.zeros(1, dtype=np.int64),
                            np.zeros(1))

@@ -46,6 +46,7 @@ from mpi4py import MPI
 
 from dolfrag.interface.stars import FlatStars
 from dolfrag.solver import star_kernel, star_replay
+from dolfrag.solver.active_set import joint_compliance
 from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.interrupt import Responsive, StepInterrupted
 from dolfrag.solver.star_kernel import (DEFAULT, ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, Cache, Geometry,
@@ -122,7 +123,7 @@ class StarLayout(FlatStars):
         held[self.comps[::d] // d] = self.fixed.reshape(-1, d).all(axis=1)
         self.frozen = np.ascontiguousarray(held[links.dof_A[self.links]] & held[links.dof_B[self.links]])
         self._geometry = star_kernel.star_geometry(self.comp_off, self.link_off, self.slot_A, self.slot_B, self.frame,
-                                                   self.weight, self.rho, self.frozen, self.mass, self.fixed)
+                                                   self.weight, self.rho, self.frozen, self.mass, self.fixed, h)
         # per star its factors, what they are (star_kernel.NONE, ...), per link their piece, slip
         # directions and (k_N, k_T, mu): records.Cache
         (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
@@ -184,6 +185,8 @@ class StarNewton:
         # the kernel's outputs, reused every step
         self._x, self._reaction, self._rhs, self._x_in = (np.zeros(n_comps) for _ in range(4))
         self._r, self._gbar, self._slip, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
+        self._r_n = np.zeros((n_links, d))  # the reactions of the step before
+        self._joint_before = np.zeros((n_links, d))  # the last step's elastic jump of the rigid links' joints
         self._slip_before = np.zeros((n_links, d))  # the last step's g_n - g_{n-1} (none before the first)
         self._absorbed = np.zeros(len(links))  # the cohesion's work of a step per link, J/m^2
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
@@ -231,7 +234,8 @@ class StarNewton:
         per_link = self._data_at(state_n)
         geometry = lay.geometry()
         # its floors are set once the step's largest terms are known (below)
-        data = StepData(rhs, x_in, g_loc, dg_loc, *per_link, float(h), 0.0, 0.0)
+        self._r_n[:] = self._r  # the reactions of the step before: the sticking links' elastic reference
+        data = StepData(rhs, x_in, g_loc, dg_loc, *per_link, float(h), 0.0, 0.0, self._r_n)
         star_kernel.gather_stars(lay.comps, geometry, u, v, f, out, data)
         # A star far from the action (a millionth of the largest force or traction of this
         # rank's step) is converged at round-off of the whole problem, not of its own tiny terms.
@@ -268,8 +272,11 @@ class StarNewton:
         if self.unconverged:
             self.failed = star_replay.failed(np.flatnonzero(self.status == star_kernel.UNCONVERGED), lay.comps,
                                              geometry, data, lay.cache(), outputs, self.options)
-        # the state after the step, from the accepted jumps; g_mid = (g_n + g_{n+1}) / 2
-        changed = self.model.advance(lay.links, self._gbar, g_loc + 0.5 * self._slip, self._r[:, 0])  # star links
+        # the state after the step, from the accepted jumps g_mid = (g_n + g_{n+1}) / 2; the
+        # law's opening is g_mid less the elastic jump of the rigid links' joints
+        g_mid = g_loc + 0.5 * self._slip
+        joint = joint_compliance(per_link[1], lay.rho, lay.frozen)[:, None] * (0.5 * (self._r_n + self._r))
+        changed = self.model.advance(lay.links, self._gbar, g_mid, self._r[:, 0], g_mid + joint)
         self._book_contact_work(*per_link[1:3])
         if len(changed):  # the stars whose damage changed: their factors are now stale (StarOptions.chord)
             self._mark_stale(changed)
@@ -388,9 +395,13 @@ class StarNewton:
         cohesion's work is stored in the rigid links of the model (model.absorb), the rest
         is dissipated by contact and friction. The stars hold every link of the rank once."""
         lay = self.layout
+        # the rigid links' joints: their elastic jump increments of this step and the last
+        joint = -joint_compliance(shift, lay.rho, lay.frozen)[:, None] * (self._r - self._r_n)
+        self._joint_before += joint
         # the star links are every link once: _absorbed is overwritten whole
-        self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, shift, cohesion_T,
-                                                      lay.weight, lay.links, self._absorbed)
+        self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, self._joint_before,
+                                                      shift, cohesion_T, lay.weight, lay.links, self._absorbed)
+        self._joint_before[:] = joint
         self.model.absorb(self._absorbed)
 
 

@@ -25,7 +25,7 @@ START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-
 # and rigid inverses (Geometry), which replay forms again from their links
 PER_COMP = ("mass", "fixed", "rhs", "x_in")
 PER_LINK = ("slot_A", "slot_B", "frame", "weight", "rho", "frozen", "g_n", "dg", "mu", "shift", "cohesion_T", "k_N", "k_T",
-            "codes", "slip_dir", "factored")
+            "codes", "slip_dir", "factored", "r_n")
 
 
 def select(stars, comp_off, link_off, per_comp, per_link):
@@ -83,11 +83,12 @@ def replay(path, regularisation=DEFAULT.regularisation, sweep_tol=DEFAULT.sweep_
     for s in range(n):  # one call per star: the kernel counts iterations per call
         one = slice(s, s + 1)
         star = select(np.array([s]), comp_off, link_off, {k: data[k] for k in PER_COMP},
-                      {k: data[k] for k in PER_LINK})
-        geometry = star_kernel.star_geometry(*(star[k] for k in Geometry._fields[:-3]))
+                      {k: data[k] for k in PER_LINK if k in data})
+        geometry = star_kernel.star_geometry(*(star[k] for k in Geometry._fields[:-3]), float(data["h"]))
         elimination = geometry.elimination
-        step = StepData(**{k: star[k] for k in StepData._fields[:-3]}, h=float(data["h"]),
-                        floor_m=float(data["floor_m"]), floor_c=float(data["floor_c"]))
+        step = StepData(**{k: star[k] for k in StepData._fields[:-4]}, h=float(data["h"]),
+                        floor_m=float(data["floor_m"]), floor_c=float(data["floor_c"]),
+                        r_n=star["r_n"] if "r_n" in star else np.zeros_like(star["g_n"]))
         q, L = star["comp_off"][1], star["link_off"][1]
         N = q + L * d
         cache = Cache(np.array([0, N * N]), np.array([0, 2 * N + 1]), np.zeros(N * N), np.zeros(2 * N + 1, np.int64),

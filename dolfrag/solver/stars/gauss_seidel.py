@@ -5,7 +5,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from dolfrag.solver.active_set import CONTACT, spring_normal_tangent
+from dolfrag.solver.active_set import CONTACT, normal_compliance, spring_normal_tangent, tangential_compliance
 from dolfrag.solver.stars.lu import lu_factor, lu_solve
 from dolfrag.solver.stars.residual import frame_jump
 
@@ -41,6 +41,7 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, tol, ws):
     slot_A, slot_B, frame, w, m, fixed, rhs = star.slot_A, star.slot_B, star.frame, star.w, star.m, star.fixed, star.rhs
     g_n, dg, mu, shift, cohesion_T, k_N, k_T = star.g_n, star.dg, star.mu, star.shift, star.cohesion_T, star.k_N, \
         star.k_T
+    frozen, rho_link, r_n = star.frozen, star.rho, star.r_n
     n = L * d
     A = ws.A[:q * q].reshape((q, q))
     P = ws.P[:q * n].reshape((q, n))  # B^T W
@@ -131,10 +132,13 @@ def gauss_seidel(d, star, x, r, gbar, code, floor_c, sweeps, tol, ws):
                     for j in range(d):
                         s += G[l * d + i, k * d + j] * r[k, j]
                 y[i] = s
-            r_N = max(-shift[l], r[l, 0] - rho[l] * y[0])
+            # the joint's compliances (active_set.COMPLIANCE), m/Pa
+            soft_N = normal_compliance(frozen[l], shift[l]) / rho_link[l]
+            soft_T = tangential_compliance(frozen[l]) / rho_link[l]
+            r_N = max(-shift[l], r[l, 0] - rho[l] * (y[0] + soft_N * r[l, 0]))
             norm = 0.0
             for i in range(1, d):
-                z[i] = r[l, i] - rho[l] * (y[i] - g_n[l, i])
+                z[i] = r[l, i] - rho[l] * (y[i] - g_n[l, i] + soft_T * (r[l, i] - r_n[l, i]))
                 norm += z[i] * z[i]
             norm = np.sqrt(norm)
             radius = mu[l] * max(r_N + shift[l], 0.0) + cohesion_T[l]

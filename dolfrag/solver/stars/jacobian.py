@@ -3,7 +3,8 @@ apart, and the pieces the factors stand for."""
 import numpy as np
 from numba import njit
 
-from dolfrag.solver.active_set import CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, spring_normal_tangent
+from dolfrag.solver.active_set import (CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, normal_compliance,
+                                      spring_normal_tangent, tangential_compliance)
 from dolfrag.solver.stars.lu import lu_factor
 from dolfrag.solver.stars.records import APPROXIMATE, EXACT
 from dolfrag.solver.stars.residual import B_CONTACT, B_PRESSED, B_SCALE, B_SLIP, B_STICK, FROZEN
@@ -39,6 +40,7 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
         contact, stick = branch[l, B_CONTACT] > 0, branch[l, B_STICK] > 0
         slipping, pressed, scale = branch[l, B_SLIP] > 0, branch[l, B_PRESSED] > 0, branch[l, B_SCALE]
         rho_l = FROZEN * rho[l] if frozen[l] else rho[l]
+        eps = tangential_compliance(frozen[l])
         # springs: h^2/4 w R^T D R, D = diag(dN, k_T ...)
         dN = spring_normal_tangent(code[l], k_N[l])
         for i in range(d):
@@ -69,14 +71,14 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
                 block[2 * d + i, j] = -h * JgR[i, j]
         # d phi / d r
         block[2 * d, 2 * d:] = 0.0
-        block[2 * d, 2 * d] = 0.0 if contact else 1.0
+        block[2 * d, 2 * d] = normal_compliance(frozen[l], star.shift[l]) if contact else 1.0
         for i in range(1, d):
             block[2 * d + i, 2 * d] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
             for k in range(1, d):
-                block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - P[i - 1, k - 1]
+                block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - (1.0 - eps) * P[i - 1, k - 1]
         if stick:
             for i in range(d):
-                block[2 * d + i, 2 * d + i] += regularisation
+                block[2 * d + i, 2 * d + i] += regularisation + (eps if i > 0 else 0.0)
         for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
@@ -219,7 +221,8 @@ def flip_rows(d, star, l, old, new, U, V):
         x = sign * h * rho[l] * frame[l, 0, j]
         V[0, b * d + j] = 0.0 if fixed[b * d + j] else x
         V[0, a * d + j] = 0.0 if fixed[a * d + j] else -x
-    V[0, q + l] = (0.0 if c_new else 1.0) - (0.0 if c_old else 1.0)
+    closed = normal_compliance(star.frozen[l], star.shift[l])  # the normal row's diagonal in contact
+    V[0, q + l] = (closed if c_new else 1.0) - (closed if c_old else 1.0)
     dN_old, dN_new = spring_normal_tangent(old, k_N[l]), spring_normal_tangent(new, k_N[l])
     if dN_new == dN_old:
         return 1

@@ -11,17 +11,17 @@ from dolfrag.solver.stars.newton import newton_space, solve_each
 from dolfrag.solver.stars.options import DEFAULT
 from dolfrag.solver.stars.ordering import unknown_orders
 from dolfrag.solver.stars.records import NONE, RIGID, Geometry, StepData, empty_cache, empty_outputs, star_at
-from dolfrag.solver.stars.rigid import all_held, rigid_inverses, rigid_space
+from dolfrag.solver.stars.rigid import held_piece, rigid_inverses
 from dolfrag.solver.stars.residual import evaluation, evaluate
 
 
-def star_geometry(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed):
-    """The layout's record (records.Geometry) of these arrays, with what it derives from them:
-    each star's elimination order and rigid inverse."""
+def star_geometry(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed, h):
+    """The layout's record (records.Geometry) of these arrays, with what it derives from them
+    and the step h (s): each star's elimination order and rigid inverse."""
     d = frame.shape[1]
     return Geometry(comp_off, link_off, slot_A, slot_B, frame, weight, rho, frozen, mass, fixed,
                     unknown_orders(comp_off, link_off, slot_A, slot_B, d),
-                    *rigid_inverses(comp_off, link_off, slot_A, slot_B, weight, rho, fixed, frozen, d))
+                    *rigid_inverses(comp_off, link_off, slot_A, slot_B, weight, rho, fixed, frozen, mass, h, d))
 
 
 @njit(cache=True, error_model="numpy")
@@ -113,7 +113,7 @@ def _solve_stars(d, geometry, data, cache, out, options, todo, abort):
     # workspaces, once per call
     ev, sw = evaluation(d, q_max, L_max), sweep_space(d, q_max, L_max)
     nw = newton_space(d, q_max, L_max, options.flips)
-    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rigid_space(q_max), todo, abort)
+    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, np.empty(q_max), todo, abort)
 
 
 @njit(cache=True, error_model="numpy")
@@ -148,7 +148,7 @@ def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation, rigid):
         l1 = l0 + L
         evaluate(d, star, x[p0:p0 + q], r[l0:l1], 0.0, 0.0, ev)
         code, e = ev.code, ev.e
-        if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and all_held(code[:L]):
+        if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and held_piece(code[:L], star.shift):
             cache.codes[l0:l1] = code[:L]  # no factors: the rigid path (stars/rigid.py) next
             cache.cached[s] = RIGID
             continue
@@ -171,9 +171,9 @@ def warm():
         comp_off, link_off, slot_A, slot_B = np.array([0, q]), np.array([0, L]), np.array([0]), np.array([1])
         frame = np.eye(d)[None].copy()
         geometry = star_geometry(comp_off, link_off, slot_A, slot_B, frame, np.ones(L), np.ones(L), np.zeros(L, bool),
-                                 np.ones(q), np.zeros(q, bool))
+                                 np.ones(q), np.zeros(q, bool), 1.0)
         data = StepData(np.ones(q), np.zeros(q), np.zeros((L, d)), np.zeros((L, d)), np.zeros(L), np.zeros(L),
-                        np.zeros(L), np.ones(L), np.ones(L), 1.0, 0.0, 0.0)
+                        np.zeros(L), np.ones(L), np.ones(L), 1.0, 0.0, 0.0, np.zeros((L, d)))
         cache = empty_cache(comp_off, link_off, d)
         solve_stars(geometry, data, cache, empty_outputs(1, q, L, d), DEFAULT)
         keep_pieces(np.array([0]), geometry, data, np.zeros(q), np.zeros((L, d)), cache, DEFAULT)

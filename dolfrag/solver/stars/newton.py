@@ -16,7 +16,7 @@ from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import (APPROXIMATE, CONVERGED, EXACT, ITERATIONS, N_FIRST, N_STALLED,
                                           N_UNCONVERGED, NONE, RIGID, STALE, STALLED, UNCONVERGED, star_at)
 from dolfrag.solver.stars.residual import B_SCALE, evaluate
-from dolfrag.solver.stars.rigid import all_held, rigid_solve
+from dolfrag.solver.stars.rigid import held_piece, rigid_solve
 
 # Newton's workspaces, sized for the largest star of a call (q_max components, L_max links,
 # N_max unknowns): the iterate (x, r); the piece and data the star started from (code_in,
@@ -52,10 +52,10 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
     StarOptions) and write its outputs and what its stored factors are now
     (solvers.loop.solve_stars says what each means). ev, sw, nw, rw: the workspaces of
     evaluate, gauss_seidel, Newton and the rigid path (Evaluation, SweepSpace, NewtonSpace,
-    rigid.RigidSpace). Returns unfinished where ``abort`` gets set.
+    an array of q_max). Returns unfinished where ``abort`` gets set.
 
-    A star whose stored piece is closed and sticking on every link, and that qualifies
-    (rigid.rigid_inverses), is first held rigid (rigid.rigid_solve): solved there if its
+    A star whose stored piece is closed and sticking on every link, every one cohesive
+    (rigid.held_piece), and that qualifies (rigid.rigid_inverses), is first held (rigid.rigid_solve): solved there if its
     residual is within rtol, at iteration 1, its factors left as they were; else Newton
     solves it, from zero if it had no factors (RIGID).
 
@@ -97,8 +97,8 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
         l1 = l0 + L
         xs, rs = x_nw[:q], r_nw[:L]
         r0, r1 = rigid_off[s], rigid_off[s + 1]
-        if options.rigid and cached[s] != NONE and r1 > r0 and all_held(codes[l0:l1]):
-            scaled_m, scaled_c = rigid_solve(d, star, rigid[r0:r1], xs, rs, data.floor_m, data.floor_c, ev, rw)
+        if options.rigid and cached[s] != NONE and r1 > r0 and held_piece(codes[l0:l1], star.shift):
+            scaled_m, scaled_c = rigid_solve(d, star, rigid[r0:r1], rw, xs, rs, data.floor_m, data.floor_c, ev)
             if max(scaled_m, scaled_c) <= options.rtol:
                 counters[N_FIRST] += 1
                 counters[ITERATIONS] = max(counters[ITERATIONS], 1)

@@ -49,6 +49,7 @@ StepData = namedtuple("StepData", (
     "h",           # s: the step
     "floor_m",     # the scales below which a star's momentum and contact residuals are read
     "floor_c",     #   against the step's largest instead (semismooth.FLOOR)
+    "r_n",         # (n_links, d) Pa: the reactions of the step before (the sticking links' elastic reference)
 ))
 
 Cache = namedtuple("Cache", (
@@ -75,7 +76,7 @@ Outputs = namedtuple("Outputs", (
     "entry_cached",  # (n_stars,) int8: what its factors were, if it started from them
 ))
 
-Star = namedtuple("Star", "q L slot_A slot_B frame w rho frozen m fixed rhs x_in g_n dg mu shift cohesion_T k_N k_T h")
+Star = namedtuple("Star", "q L slot_A slot_B frame w rho frozen m fixed rhs x_in g_n dg mu shift cohesion_T k_N k_T h r_n")
 
 # What each star's solve ended as (Outputs.status): below rtol; accepted above it (from
 # StarOptions.fallback on, within stall or give_up); unconverged.
@@ -111,7 +112,8 @@ def star_at(geometry, data, s):
     return Star(p1 - p0, l1 - l0, geometry.slot_A[l0:l1], geometry.slot_B[l0:l1], geometry.frame[l0:l1],
                 geometry.weight[l0:l1], geometry.rho[l0:l1], geometry.frozen[l0:l1], geometry.mass[p0:p1],
                 geometry.fixed[p0:p1], data.rhs[p0:p1], data.x_in[p0:p1], data.g_n[l0:l1], data.dg[l0:l1],
-                data.mu[l0:l1], data.shift[l0:l1], data.cohesion_T[l0:l1], data.k_N[l0:l1], data.k_T[l0:l1], data.h)
+                data.mu[l0:l1], data.shift[l0:l1], data.cohesion_T[l0:l1], data.k_N[l0:l1], data.k_T[l0:l1], data.h,
+                data.r_n[l0:l1])
 
 
 def empty_cache(comp_off, link_off, d):

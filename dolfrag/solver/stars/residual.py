@@ -5,7 +5,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from dolfrag.solver.active_set import link_code
+from dolfrag.solver.active_set import link_code, normal_compliance, tangential_compliance
 
 # A link whose two copies are both prescribed (between supported copies, or in a patch
 # test) has a known jump, so Newton cannot move it and its contact rows would be singular.
@@ -71,7 +71,7 @@ def evaluate(d, star, x, r, floor_m, floor_c, ev):
     q, L, h = star.q, star.L, star.h
     slot_A, slot_B, frame, w, rho, frozen = star.slot_A, star.slot_B, star.frame, star.w, star.rho, star.frozen
     m, fixed, rhs, g_n, dg, mu = star.m, star.fixed, star.rhs, star.g_n, star.dg, star.mu
-    shift, cohesion_T, k_N, k_T = star.shift, star.cohesion_T, star.k_N, star.k_T
+    shift, cohesion_T, k_N, k_T, r_n = star.shift, star.cohesion_T, star.k_N, star.k_T, star.r_n
     Bx, gbar, slip, branch, e, force = ev.Bx, ev.gbar, ev.slip, ev.branch, ev.e, ev.force
     R, reaction, code, scratch = ev.R, ev.reaction, ev.code, ev.scratch
     for i in range(q):
@@ -95,7 +95,7 @@ def evaluate(d, star, x, r, floor_m, floor_c, ev):
         rho_l = FROZEN * rho[l] if frozen[l] else rho[l]
         # shifted Signorini on r~_N = r_N + shift, Coulomb on the shifted cone
         r_shift = r[l, 0] + shift[l]
-        y_N = r_shift - rho_l * (g_n[l, 0] + slip[l, 0])
+        y_N = r_shift - rho_l * (g_n[l, 0] + slip[l, 0]) - normal_compliance(frozen[l], shift[l]) * r[l, 0]
         contact = y_N >= 0
         phi = r_shift - max(0.0, y_N)
         R[q + l] = phi
@@ -103,18 +103,19 @@ def evaluate(d, star, x, r, floor_m, floor_c, ev):
         probe += phi
         pressed = r_shift > 0
         radius = mu[l] * (r_shift if pressed else 0.0) + cohesion_T[l]
+        eps = tangential_compliance(frozen[l])
         norm = 0.0
         for i in range(1, d):
-            y_i = r[l, i] - rho_l * slip[l, i]
+            y_i = r[l, i] - rho_l * slip[l, i] - eps * (r[l, i] - r_n[l, i])
             norm += y_i * y_i
         norm = np.sqrt(norm)
         stick = norm <= radius and radius > 0
         slipping = norm > radius and radius > 0
         scale = radius / norm if slipping else 0.0
         for i in range(1, d):
-            y_i = r[l, i] - rho_l * slip[l, i]
+            y_i = r[l, i] - rho_l * slip[l, i] - eps * (r[l, i] - r_n[l, i])
             e[l, i - 1] = y_i / norm if slipping else 0.0
-            phi = rho_l * slip[l, i] if stick else r[l, i] - scale * y_i
+            phi = rho_l * slip[l, i] + eps * (r[l, i] - r_n[l, i]) if stick else r[l, i] - scale * y_i
             R[q + i * L + l] = phi
             max_phi = max(max_phi, abs(phi))
             probe += phi
