@@ -10,7 +10,7 @@ Newton inside. A package of one idea per module, from the bottom up:
     jacobian.py      its generalised Jacobian, LU with the identity rows set apart, pieces
     ordering.py      the elimination order of each star's unknowns
     gauss_seidel.py  the projected Gauss-Seidel fallback
-    rigid.py         a star closed and sticking on every link, solved from its graph Laplacian
+    rigid.py         a star closed and sticking on every link, its joints solved from a stored inverse
     newton.py        one star's Newton, and what it keeps of its factors
     loop.py          the loops over the stars: gather_stars, solve_stars, keep_pieces, warm
 

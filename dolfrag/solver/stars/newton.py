@@ -118,10 +118,10 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
             xs[i] = x_in[i] if fixed[i] else 0.0
             imposed = imposed or (fixed[i] and x_in[i] != 0.0)
         # reactions start from zero (or from this step's prediction), never from the last
-        # step: around a rigid star they are determined only up to self-equilibrated rings
-        # (see StarOptions.regularisation), which a warm start carried from step to step until
-        # they choked the friction cones (measured: threshold and linear-softening runs then
-        # failed to converge; cold, they complete)
+        # step: while held links were rigid their reactions were determined only up to
+        # self-equilibrated rings (see StarOptions.regularisation), which a warm start carried
+        # from step to step until they choked the friction cones (measured: threshold and
+        # linear-softening runs then failed to converge; cold, they complete)
         for l in range(L):  # with the piece and data the star starts from, element by element
             for i in range(d):  # (slice assignments cost more per star: measured)
                 rs[l, i] = 0.0

@@ -24,20 +24,20 @@ class StarOptions(NamedTuple):
     # Start each star from the affine prediction of its stored piece (solver/active_set.py);
     # False: every star from zero.
     predict: bool = True
-    # A star whose last piece was closed and sticking on every link first tries that piece
-    # held rigid (rigid.py): its motion and reactions from the star's graph Laplacian instead
-    # of Newton on q + L d unknowns, accepted where its residual is within rtol. False: every
-    # star takes Newton.
+    # A star whose last piece was closed and sticking on every link, each a stiff joint,
+    # first tries that piece held (rigid.py): its motion and reactions from the stored inverse
+    # of its joints' system instead of Newton on q + L d unknowns, accepted where its
+    # residual is within rtol. False: every star takes Newton.
     rigid: bool = True
-    # Rigid constraints around a vertex are redundant: the jumps of an interior star sum to
-    # zero around the vertex, so when every link sticks (a rigid threshold or linear-softening
-    # star, or a frictional contact ring) the constraint rows lose rank and the exact Jacobian
-    # is singular. The Newton matrix gets ``regularisation`` on the reaction diagonal
-    # (d phi / d r) of sticking links only (elsewhere Newton stays exact: on a
-    # piecewise-linear piece it lands in one step, which a cold start needs): the residual
-    # stays exact, so the solution does too; Newton converges at a rate of about
-    # ``regularisation`` per iteration instead of exactly, and picks one of the equivalent
-    # reactions in the redundant directions (they do no work: same motion, same energies).
+    # Rigid constraints around a vertex were redundant: the jumps of an interior star sum to
+    # zero around the vertex, so when every link stuck the constraint rows lost rank and the
+    # exact Jacobian was singular. Held links are stiff joints now (active_set.COMPLIANCE), so
+    # it is regular; the Newton matrix still gets ``regularisation`` on the reaction diagonal
+    # (d phi / d r) of sticking links, on top of the joint's own: the residual stays exact, so
+    # the solution does, and Newton converges at a rate of about ``regularisation`` per
+    # iteration on those rows. Measured with the joints: 1e-6 or none, the same
+    # (benchmarks/hard_stars.py, 0.32 and 0.31 s); a step's second pass takes more
+    # (semismooth.SECOND_REGULARISATION).
     regularisation: float = 1e-6
     # Full Newton steps for ``cycle`` iterations, then backtracking on the scaled residual: a
     # semi-smooth Newton can cycle between active sets of contact and friction (measured on
