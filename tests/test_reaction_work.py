@@ -52,3 +52,27 @@ def test_the_split_does_not_depend_on_a_self_stress_of_a_rigid_star():
     # the star's dissipation: its work less what it stores, the same to round-off of the sum
     assert weight @ diss_self == pytest.approx(weight @ diss, rel=1e-9)
     assert weight @ (diss + stored) == pytest.approx(work(r), rel=1e-12)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_a_held_joints_elastic_work_is_stored_and_the_rest_split_as_for_a_rigid_link(gdim):
+    """A rigid link's elastic joint (solver/active_set.COMPLIANCE) moves by dg_el: the work of
+    its reactions on that part is stored (given back as it unloads), and the split of the
+    rest is the rigid link's: a link slipping on its cone with an elastic part on top
+    dissipates only its friction, whatever the elastic part (round-off of the products)."""
+    from dolfrag.solver.energy import book_reaction_work
+    rng = np.random.default_rng(4)
+    n = 6
+    shift, cohesion_T, mu = rng.uniform(1e5, 4e5, n), rng.uniform(1e5, 4e5, n), 0.3
+    pressed = rng.uniform(0.0, 1e6, n)
+    slide = rng.normal(0.0, 1e-9, (n, gdim))
+    slide[:, 0] = 0.0
+    slip = np.linalg.norm(slide[:, 1:], axis=1)
+    r = np.column_stack([pressed - shift, -(mu * pressed + cohesion_T)[:, None] * slide[:, 1:] / slip[:, None]])
+    elastic = rng.normal(0.0, 1e-10, (n, gdim))  # the joint's part of this step's and the last's increments
+    weight, links, absorbed = np.ones(n), np.arange(n), np.zeros(n)
+    # the window's increments, half this step's and half the last's, the joint's part on top
+    this, before = 0.5 * (slide + elastic), 0.5 * (slide + elastic)
+    dissipated = book_reaction_work(r, this, before, elastic, shift, cohesion_T, weight, links, absorbed)
+    assert dissipated == pytest.approx(0.5 * np.sum(mu * pressed * slip), rel=1e-12)
+    assert absorbed == pytest.approx(0.5 * (cohesion_T * slip - np.sum(r * elastic, axis=1)), rel=1e-12)

@@ -32,8 +32,8 @@ from numba import njit
 CONTACT, STICK, SLIP, PRESSED, NEGATIVE, SPRING = 1, 2, 4, 8, 16, 32
 
 # A held link is a stiff elastic joint, not a rigid one: its compliance is COMPLIANCE / rho
-# (m/Pa; rho = m / (h^2 w) the link's step stiffness, Pa/m, about 3 E / h_mesh at the stable
-# step: a joint ~3,000 times stiffer than a cell of the bulk). A sticking link's tangential
+# (m/Pa; rho = m / (h^2 w) the link's step stiffness, Pa/m, measured 4-14 E / h_mesh at the
+# stable step: a joint 4,000-14,000 times stiffer than a cell of the bulk). A sticking link's tangential
 # reaction moves from the step before's, r_n, with its slip as the spring rho / COMPLIANCE,
 # and a closed link with tensile strength left (shift > 0: a rigid cohesive link) opens or
 # closes by COMPLIANCE r_N / rho; broken links keep exact contact. Rigid, the reactions of a

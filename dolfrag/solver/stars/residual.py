@@ -60,7 +60,8 @@ def evaluate(d, star, x, r, floor_m, floor_c, ev):
 
         R_m = m x - h f + h B^T w (t(gbar) - r)       (0 on prescribed components)
         phi = Alart-Curnier of Signorini-Coulomb on the cone shifted by the cohesion,
-              at g_end = g_n + dg + h B x            (interface/contact.py)
+              at g_end = g_n + dg + h B x, with the held links' joints
+              (interface/contact.py; active_set.COMPLIANCE)
         gbar = g_n + h B x / 4, but 3 g_n,N / 4 - dg_N / 4 on closed links
 
     Closed links read their normal spring at the jump contact pins (where g_end,N = 0),
