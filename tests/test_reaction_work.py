@@ -74,5 +74,7 @@ def test_a_held_joints_elastic_work_is_stored_and_the_rest_split_as_for_a_rigid_
     # the window's increments, half this step's and half the last's, the joint's part on top
     this, before = 0.5 * (slide + elastic), 0.5 * (slide + elastic)
     dissipated = book_reaction_work(r, this, before, elastic, shift, cohesion_T, weight, links, absorbed)
+    # the closed forms and the split are the same products summed in another order: round-off
+    # of those sums only (terms of one sign, a handful of ulps), as in the first test above
     assert dissipated == pytest.approx(0.5 * np.sum(mu * pressed * slip), rel=1e-12)
     assert absorbed == pytest.approx(0.5 * (cohesion_T * slip - np.sum(r * elastic, axis=1)), rel=1e-12)

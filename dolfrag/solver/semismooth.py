@@ -275,9 +275,10 @@ class StarNewton:
         # the state after the step, from the accepted jumps g_mid = (g_n + g_{n+1}) / 2; the
         # law's opening is g_mid less the elastic jump of the rigid links' joints
         g_mid = g_loc + 0.5 * self._slip
-        joint = joint_compliance(per_link[1], lay.rho, lay.frozen)[:, None] * (0.5 * (self._r_n + self._r))
-        changed = self.model.advance(lay.links, self._gbar, g_mid, self._r[:, 0], g_mid + joint)
-        self._book_contact_work(*per_link[1:3])
+        compliance = joint_compliance(per_link[1], lay.rho, lay.frozen)[:, None]  # m/Pa, (n, 1)
+        changed = self.model.advance(lay.links, self._gbar, g_mid, self._r[:, 0],
+                                     g_mid + compliance * (0.5 * (self._r_n + self._r)))
+        self._book_contact_work(*per_link[1:3], compliance)
         if len(changed):  # the stars whose damage changed: their factors are now stale (StarOptions.chord)
             self._mark_stale(changed)
             self._refresh(changed)  # in place: data holds the new values
@@ -387,16 +388,18 @@ class StarNewton:
         return (model.friction(state, links), model.shift(state, links), model.shear_cohesion(state, links),
                 *model.secants(state, links))
 
-    def _book_contact_work(self, shift, cohesion_T):
+    def _book_contact_work(self, shift, cohesion_T, compliance):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
         its share of the discrete energy balance (solver/imex.py), from the jump increments
         of this step and the last (h B v_{n+1/2} + h B v_{n-1/2}, link frame), split by
         energy.reaction_work with the step's shift and cohesion_T (Pa, per star link): the
         cohesion's work is stored in the rigid links of the model (model.absorb), the rest
-        is dissipated by contact and friction. The stars hold every link of the rank once."""
+        is dissipated by contact and friction, less the work on the rigid links' joints
+        (compliance (n, 1) m/Pa: active_set.joint_compliance), which those store. The stars
+        hold every link of the rank once."""
         lay = self.layout
         # the rigid links' joints: their elastic jump increments of this step and the last
-        joint = -joint_compliance(shift, lay.rho, lay.frozen)[:, None] * (self._r - self._r_n)
+        joint = -compliance * (self._r - self._r_n)
         self._joint_before += joint
         # the star links are every link once: _absorbed is overwritten whole
         self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, self._joint_before,
