@@ -8,9 +8,15 @@ from dolfrag.problem import Problem
 from dolfrag.runner.driver import integrator
 
 
-def _integrator(predict):
-    case = load_case("sound-bar", ["mesh.size=0.004", "interface.law=rccm", "interface.sigma_c=4e5",
-                                   "interface.mu=0.3"])
+RCCM = ["interface.law=rccm", "interface.sigma_c=4e5", "interface.mu=0.3"]
+# the structures' law, weak enough that the pulse cracks the bar within STEPS_TO_CRACK steps
+LINEAR_SOFTENING = ["interface.law=linear_softening", "interface.sigma_c=4e5", "interface.G_c=0.05",
+                    "interface.mu=0.3"]
+STEPS_TO_CRACK = 150
+
+
+def _integrator(predict, laws=RCCM):
+    case = load_case("sound-bar", ["mesh.size=0.004", *laws])
     integ = integrator(Problem.build(case, MPI.COMM_SELF))
     integ.interface.predict = predict
     return integ
@@ -56,3 +62,66 @@ def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
     restore_object(lay, {"slip_dir": older})
     assert lay.slip_dir.shape == (n, d) and lay.slip_dir.flags.c_contiguous
     assert np.array_equal(lay.slip_dir[:, :d - 1], older) and (lay.slip_dir[:, d - 1] == 0).all()
+
+
+def test_a_rewound_step_drops_the_star_factors_and_steps_on_within_tolerance():
+    """A step abandoned midway is rewound (runner/checkpoint.Rewind) without a copy of the
+    star factors: the fields come back bit for bit, no star keeps factors, a second mark
+    writes into the first one's arrays, and the run goes on as the unrewound one within the
+    star solves' tolerance."""
+    from dolfrag.runner.checkpoint import Rewind
+    from dolfrag.solver.star_kernel import NONE
+    whole, rewound = _integrator(True), _integrator(True)
+    for _ in range(20):
+        whole.step()
+        rewound.step()
+    rewind = Rewind([rewound, rewound.model, rewound.interface, rewound.interface.layout])
+    rewind.mark()
+    kept_u = rewind.states[0]["u"]
+    rewound.step()
+    whole.step()
+    rewind.mark()
+    assert rewind.states[0]["u"] is kept_u and "factors" not in rewind.states[3]
+    u, v = rewound.u.x.array.copy(), rewound.v.x.array.copy()
+    rewound.step()  # the abandoned step
+    rewind.restore()
+    assert np.array_equal(rewound.u.x.array, u) and np.array_equal(rewound.v.x.array, v)
+    assert rewound.n == whole.n and (rewound.interface.layout.cached == NONE).all()
+    for _ in range(39):
+        whole.step()
+        rewound.step()
+    # the rewound run's next step starts every star from zero: as in the test above, each
+    # step solves every star to 1e-10 of its scales from either start (no link damaged by 60)
+    assert (whole.model.beta == 1).all()
+    assert _relative(rewound.v, whole.v) < 1e-8 and _relative(rewound.u, whole.u) < 1e-8
+    assert not np.array_equal(rewound.v.x.array, whole.v.x.array)  # it did start from zero
+
+
+def test_a_checkpoint_keeps_only_the_stars_held_factors_and_resumes_bit_for_bit():
+    """A checkpoint keeps the factors of the stars that hold some, not the blocks of the held
+    (RIGID) and unfactored (NONE) stars: a run restored from it steps on bit for bit as the
+    uninterrupted one. Linear softening on the bar, cracking: held stars and stars with
+    factors side by side."""
+    from dolfrag.runner.checkpoint import object_state, restore_object
+    from dolfrag.solver.star_kernel import RIGID
+
+    def parts(integ):
+        return [integ, integ.model, integ.interface, integ.interface.layout]
+
+    whole = _integrator(True, LINEAR_SOFTENING)
+    for _ in range(STEPS_TO_CRACK):
+        whole.step()
+    saved = [object_state(part) for part in parts(whole)]
+    lay = whole.interface.layout
+    held = saved[3]["held_factors"].size
+    assert (lay.cached == RIGID).any() and 0 < held < lay.factors.size  # it leaves some out
+    resumed = _integrator(True, LINEAR_SOFTENING)
+    for part, state in zip(parts(resumed), saved):
+        restore_object(part, state)
+    for _ in range(60):
+        whole.step()
+        resumed.step()
+    assert whole.model.broken().sum() > 0
+    for name in ("u", "v"):
+        assert np.array_equal(getattr(whole, name).x.array, getattr(resumed, name).x.array), name
+    assert np.array_equal(whole.model.delta_max, resumed.model.delta_max)

@@ -4,7 +4,8 @@ complete one on the same number of ranks.
 
 What a stateful object keeps is named by its ``STATE`` attribute (attribute names); an
 object without one (a step solver) gives every array, number and list of objects among its
-attributes. Arrays are restored in place, so that views other objects hold stay valid.
+attributes. Arrays are restored in place, so that views other objects hold stay valid; a
+property with a setter is restored through it (a part of an array, say).
 """
 import copy
 import dataclasses
@@ -37,21 +38,31 @@ def _is_state(value):
                                            and all(hasattr(item, "__dict__") for item in value))
 
 
-def object_state(obj):
-    """{attribute: copy of its value} of ``obj`` (module docstring); {} for None."""
-    if obj is None:
-        return {}
-    names = getattr(obj, "STATE", None)
+def _names(obj, names=None):
+    """The attributes of ``obj`` a state keeps: ``names``, else its STATE, else every array,
+    number and list of objects among them (module docstring)."""
+    names = getattr(obj, "STATE", None) if names is None else names
     if names is None:
         names = [name for name, value in vars(obj).items() if _is_state(value)]
-    return {name: _value(getattr(obj, name)) for name in names}
+    return names
+
+
+def object_state(obj, names=None):
+    """{attribute: copy of its value} of ``obj`` for the attribute ``names`` (default: its
+    STATE, module docstring); {} for None."""
+    if obj is None:
+        return {}
+    return {name: _value(getattr(obj, name)) for name in _names(obj, names)}
 
 
 def restore_object(obj, state):
-    """Put back what object_state(obj) returned."""
+    """Put back what object_state(obj) returned, in its order; a property with a setter
+    through that setter."""
     for name, saved in state.items():
         current = getattr(obj, name, None)  # a step solver sets some attributes at its first step
-        if hasattr(current, "x") and hasattr(current.x, "array"):
+        if getattr(getattr(type(obj), name, None), "fset", None) is not None:
+            setattr(obj, name, saved)
+        elif hasattr(current, "x") and hasattr(current.x, "array"):
             current.x.array[:] = saved
         elif isinstance(current, np.ndarray) and isinstance(saved, np.ndarray) and current.shape == saved.shape \
                 and current.dtype == saved.dtype:
@@ -64,19 +75,40 @@ def restore_object(obj, state):
             setattr(obj, name, saved)
 
 
+def _copy_into(saved, value):
+    """_value(value), written into ``saved`` (an earlier _value of it) where their arrays
+    match, so that a mark made every step allocates nothing."""
+    array = value.x.array if hasattr(value, "x") and hasattr(value.x, "array") else value
+    if isinstance(array, np.ndarray) and isinstance(saved, np.ndarray) and saved is not array \
+            and saved.shape == array.shape and saved.dtype == array.dtype:
+        np.copyto(saved, array)
+        return saved
+    return _value(value)
+
+
 class Rewind:
     """The state of ``objects`` kept in memory at ``mark()`` and put back by ``restore()``:
-    the last completed step, for a step abandoned midway."""
+    the last completed step, for a step abandoned midway.
+
+    An object's ``REWIND`` (attribute names), where it has one, replaces its STATE here: it
+    leaves out what a checkpoint keeps but the object can do without (a cache), and the
+    object's ``rewound()``, called after the restore, gives that up."""
 
     def __init__(self, objects):
         self.objects, self.states = objects, None
 
     def mark(self):
-        self.states = [object_state(obj) for obj in self.objects]
+        before = self.states or [{} for _ in self.objects]
+        self.states = [{} if obj is None else
+                       {name: _copy_into(saved.get(name), getattr(obj, name))
+                        for name in _names(obj, getattr(obj, "REWIND", None))}
+                       for obj, saved in zip(self.objects, before)]
 
     def restore(self):
         for obj, state in zip(self.objects, self.states):
             restore_object(obj, state)
+            if hasattr(obj, "rewound"):
+                obj.rewound()
 
 
 def owner_rule(centroids, comm):

@@ -108,8 +108,13 @@ class StarLayout(FlatStars):
     whether it is prescribed, each star's elimination order of its unknowns, and the cache
     of each star's last Jacobian factors."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
-    # resumed run takes the same iterates as an uninterrupted one
-    STATE = ("factors", "pivots", "codes", "slip_dir", "cached", "factored")
+    # resumed run takes the same iterates as an uninterrupted one; of the factors only those
+    # of the stars that hold some (held_factors), restored once ``cached`` is
+    STATE = ("cached", "held_factors", "pivots", "codes", "slip_dir", "factored")
+    # what a step's rewind keeps (runner/checkpoint.Rewind): the factors are most of a rank's
+    # state (533 of 585 MB for the 0.1 m bunker), and copying them before every guarded step
+    # took 41 % of the 0.04 m panel's time; a rewound step drops them instead (rewound)
+    REWIND = ("codes", "slip_dir", "cached", "factored")
 
     def __init__(self, stars, links, m, h):
         super().__init__(stars, links)
@@ -137,7 +142,32 @@ class StarLayout(FlatStars):
 
     @slip_dir.setter
     def slip_dir(self, value):  # from a checkpoint of before the scale column: scale 0, held directions
-        self._slip_dir = np.pad(value, ((0, 0), (0, self.frame.shape[1] - value.shape[1])))
+        padded = np.pad(value, ((0, 0), (0, self.frame.shape[1] - value.shape[1])))
+        if hasattr(self, "_slip_dir"):
+            self._slip_dir[...] = padded  # in place, as checkpoint.restore_object restores arrays
+        else:
+            self._slip_dir = padded
+
+    @property
+    def held_factors(self):
+        """The factors of the stars that hold some (``cached`` neither NONE nor RIGID), one
+        star after the other: what a checkpoint keeps of ``factors``. The other stars' blocks
+        are formed before they are read."""
+        return self.factors[self._holding()]
+
+    @held_factors.setter
+    def held_factors(self, values):
+        self.factors[self._holding()] = values
+
+    def _holding(self):
+        """Per entry of ``factors``, whether its star holds factors."""
+        holds = (self.cached != star_kernel.NONE) & (self.cached != star_kernel.RIGID)
+        return np.repeat(holds, np.diff(self.fac_off))
+
+    def rewound(self):
+        """After a rewind: no star has stored factors (star_kernel.NONE), as before the first
+        step, since the abandoned step may have formed some in place."""
+        self.cached[:] = star_kernel.NONE
 
     def geometry(self):
         """The layout as the kernel reads it (records.Geometry)."""
