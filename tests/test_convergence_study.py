@@ -18,7 +18,7 @@ def _fake_run(out, end, h=0.1):
                "wall": {"midspan_deflection": {"peak_m": 9.8e-4}},
                "debris": {"hazard_distance_m": 0.0}}
     (folder / "summary.json").write_text(json.dumps(summary))
-    (folder / "links.csv").write_text("broken,break_time_s,weight\n1,0.00767,0.226\n0,nan,0.1\n")
+    (folder / "links.csv").write_text("broken,break_time_s,weight,damage\n1,0.00767,0.226,1\n0,nan,0.1,0.25\n")
     (folder / "history.csv").write_text("step,time_s,w_midspan_m,D_damage_J,D_contact_J,broken_links\n"
                                         "10,0.0059,-2.0e-4,1.0,0.0,0\n20,0.0081,-8.0e-4,90.0,10.0,27\n")
     return folder
@@ -43,8 +43,9 @@ def test_the_table_reads_each_run_and_its_end(tmp_path):
     assert result.returncode == 0, result.stderr
     assert "to 0.0085 s" in result.stdout  # the runs' end, not the study's default 0.02 s
     row = next(line for line in result.stdout.splitlines() if line.startswith("| 0.1 |"))
-    # first crack 7.67 ms, peak deflection 0.98 mm, D_damage + D_contact, the broken facets' area
-    assert "| 7.67 | 0.98 | 155 | 0.226 |" in row
+    # first crack 7.67 ms, peak deflection 0.98 mm, D_damage + D_contact, the broken facets'
+    # area, the effective crack 0.226 x 1 + 0.1 x 0.25
+    assert "| 7.67 | 0.98 | 155 | 0.226 | 0.251 |" in row
 
 
 def test_the_state_at_given_times_comes_from_the_nearest_history_row(tmp_path):

@@ -20,7 +20,9 @@ each quantity against the goal (10 %; the hazard distance: one ring width).
 Quantities (SI): first crack (s, the first link broken through), peak deflection (m, midspan
 of the wall, centre of the panel), energy dissipated by cracking and by contact and friction
 (J, J/m in 2D), crack length (m, 2D) or area (m^2, 3D): the facet area whose links are broken,
-loose pieces (not held by a support) and their mass (kg, kg/m in 2D); 3D also the median mass
+and the effective crack, sum of damage x facet area over the links (for linear softening, whose
+damage is the fraction of G_c a link has dissipated, the area of a crack that dissipates as
+much: within 1-6 % of D_damage / G_c on the studies' runs), loose pieces (not held by a support) and their mass (kg, kg/m in 2D); 3D also the median mass
 of a loose piece and the debris hazard distance (m, DDESB).
 """
 import argparse
@@ -118,6 +120,7 @@ def measures(folder):
             "peak_deflection_m": abs(deflection.get("peak_m", float("nan"))),
             "dissipated_J": energies.get("D_damage_J", 0.0) + energies.get("D_contact_J", 0.0),
             "crack_size": sum(float(r["weight"]) for r in broken),
+            "effective_crack": sum(float(r["weight"]) * float(r.get("damage") or 0.0) for r in links),
             "loose_pieces": len(loose), "loose_mass": sum(loose_mass),
             "median_piece_mass": float(np.median(loose_mass)) if loose_mass else float("nan"),
             "hazard_distance_m": debris.get("hazard_distance_m")}
@@ -125,10 +128,11 @@ def measures(folder):
 
 COLUMNS = [("cells", "cells", "{:,}"), ("first_crack_s", "first crack (ms)", "ms"),
            ("peak_deflection_m", "peak deflection (mm)", "mm"), ("dissipated_J", "dissipated (J)", "{:.4g}"),
-           ("crack_size", "crack length (m) / area (m²)", "{:.4g}"), ("loose_pieces", "loose pieces", "{:,}"),
+           ("crack_size", "crack length (m) / area (m²)", "{:.4g}"),
+           ("effective_crack", "effective crack (m / m²)", "{:.4g}"), ("loose_pieces", "loose pieces", "{:,}"),
            ("loose_mass", "their mass (kg)", "{:.4g}"), ("median_piece_mass", "median piece (kg)", "{:.3g}"),
            ("hazard_distance_m", "hazard distance (m)", "{}"), ("wall_time_s", "wall time (s)", "{:.0f}")]
-COMPARED = ["peak_deflection_m", "dissipated_J", "crack_size"]
+COMPARED = ["peak_deflection_m", "dissipated_J", "crack_size", "effective_crack"]
 
 
 def _cell(value, form):
