@@ -166,10 +166,11 @@ def measure_case(key, case, sets, ranks, tmp, clock, repeat):
 
 
 def shares(r):
-    """Per cent of a step in bulk, interface, communication (mean over ranks; the largest
-    rank's), output, and the rest (update, diagnostics)."""
+    """Per cent of a step in bulk, interface (the hard stars' passes included),
+    communication (mean over ranks; the largest rank's), output, and the rest (update,
+    diagnostics)."""
     ph, total = r["phases"], r["total"]
-    parts = (ph["bulk"], ph["interface"], ph["communication"], r["communication_max"], ph["output"],
+    parts = (ph["bulk"], ph["interface"] + ph["hard_stars"], ph["communication"], r["communication_max"], ph["output"],
              ph["update"] + ph["diagnostics"] + ph["implicit"])
     return [100 * x / total for x in parts]
 

@@ -10,8 +10,10 @@ from time import perf_counter
 import numpy as np
 from mpi4py import MPI
 
-# The phases of an imex step, in order; theta's coupled global solve is "implicit".
-PHASES = ("bulk", "interface", "communication", "update", "implicit", "diagnostics", "output")
+# The phases of an imex step, in order; theta's coupled global solve is "implicit". The star
+# solve is "interface", but for its second and third passes over the stars the first left
+# unsolved (solver/semismooth.py): "hard_stars".
+PHASES = ("bulk", "interface", "hard_stars", "communication", "update", "implicit", "diagnostics", "output")
 
 
 class PhaseTimer:

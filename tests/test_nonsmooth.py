@@ -207,17 +207,19 @@ def test_a_star_left_to_the_second_pass_starts_there_until_the_second_pass_solve
     solves it to rtol; the step after, it is back in the first pass. Star 1 is solved by the
     first pass every step. (Since held links are stiff joints, no built-in case or benchmark
     leaves a star to the second pass step after step: bunker-h2 starts 2 star solves there in
-    3,196 steps, against 8,027 with rigid links.)"""
+    3,196 steps, against 8,027 with rigid links.) The time of the second pass is booked to
+    the phase hard_stars, that of the first to interface."""
     from types import SimpleNamespace
 
     from dolfrag.solver import semismooth
     from dolfrag.solver.star_kernel import CONVERGED, DEFAULT, N_UNCONVERGED, STALLED, UNCONVERGED
+    from dolfrag.timing import PhaseTimer
     # what each pass makes of star 0, per step: first pass (None: not in it), second pass
     script = [(UNCONVERGED, STALLED), (None, CONVERGED), (CONVERGED, None)]
     step = SimpleNamespace(options=DEFAULT, escalation=semismooth.ESCALATION, max_iterations=DEFAULT.max_iterations,
                            remember=True, remembered=0, stars=SimpleNamespace(gdim=2),
                            status=np.zeros(2, np.int8), _counters=np.zeros(4, np.int64), _hard=np.zeros(2, bool),
-                           _first=np.zeros(2, bool), _second=np.zeros(2, bool))
+                           _first=np.zeros(2, bool), _second=np.zeros(2, bool), timer=PhaseTimer())
     step._solve_unconverged_again = lambda solve: semismooth.StarNewton._solve_unconverged_again(step, solve)
     for first, second in script:
         todos = []
@@ -230,7 +232,10 @@ def test_a_star_left_to_the_second_pass_starts_there_until_the_second_pass_solve
                 step.status[0] = second if second_pass else first
             step._counters[N_UNCONVERGED] = np.count_nonzero(step.status == UNCONVERGED)
 
+        booked = dict(step.timer.seconds)
         semismooth.StarNewton._passes(step, solve_stars, np.zeros(1, np.int8))
+        assert step.timer.seconds["interface"] > booked.get("interface", 0.0)
+        assert (step.timer.seconds["hard_stars"] > booked.get("hard_stars", 0.0)) == (second is not None)
         assert not todos[0][0] and list(todos[0][1]) == [first is not None, True]
         assert [t[0] for t in todos] == [False] + [True] * (second is not None)
         if second is not None:

@@ -324,10 +324,12 @@ class StarNewton:
         n_hard = int(np.count_nonzero(hard))
         np.logical_not(hard, out=self._first)
         solve_stars(self.options, self._first)
+        self.timer.lap("interface")
         self.status[hard] = star_kernel.UNCONVERGED
         self.remembered += n_hard
         if (n_hard or self._counters[N_UNCONVERGED]) and self.escalation > 1 and not abort[0]:
             self._solve_unconverged_again(solve_stars)
+            self.timer.lap("hard_stars")
             if self.remember:
                 np.logical_and(self._second, self.status != star_kernel.CONVERGED, out=hard)
         elif n_hard:  # a stop request cut the step short: start the next one afresh
