@@ -299,10 +299,11 @@ def test_star_jacobian_is_the_derivative_of_the_residual_on_each_piece(d):
         if crossed:  # a kink within eps: no derivative to compare
             continue
         checked += 1
+        # the Newton matrix's regularisation (by design), on sticking links' rows that no
+        # joint holds: the normal rows of closed links without tensile strength
         stick = (code & STICK) > 0
-        for i in range(d):  # the Newton matrix's regularisation of sticking links (by design)
-            at = q + i * L + np.flatnonzero(stick)
-            J[at, at] -= REGULARISATION
+        at = q + np.flatnonzero(stick & ((code & CONTACT) > 0) & ~(star["shift"] > 0) & ~star["frozen"])
+        J[at, at] -= REGULARISATION
         free = ~np.concatenate([star["fixed"], np.zeros(L * d, bool)])
         # affine pieces: central differences exact to round-off (1e-10 / eps of O(1) terms);
         # 3D slip (smooth): O(eps^2) besides
@@ -469,7 +470,7 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
                               np.empty(N + 3 * d, np.int64), at, REGULARISATION)
         U, V, n_u = np.zeros((2 * len(links), N)), np.zeros((2 * len(links), N)), 0
         for l in links:
-            n_u += jacobian.flip_rows(d, record, l, old[l], new[l], U[n_u:n_u + 2], V[n_u:n_u + 2])
+            n_u += jacobian.flip_rows(d, record, l, old[l], new[l], U[n_u:n_u + 2], V[n_u:n_u + 2], REGULARISATION)
         U, V = U[:n_u].copy(), V[:n_u].copy()
         # the same entries summed in another order: round-off of the largest
         assert np.allclose(J_old + U.T @ V, J_new, rtol=0, atol=1e-14 * np.abs(J_new).max()), trial

@@ -58,8 +58,9 @@ from dolfrag.timing import PhaseTimer
 FLOOR = 1e-6
 # A step with a star unsolved after max_iterations solves it again (from the cache the first
 # pass left) with ESCALATION times the iterations and SECOND_REGULARISATION on the reaction
-# diagonal of its sticking links (StarOptions.regularisation elsewhere), before the run
-# stops. What it solves: rings of rigid links around an interior vertex, pressed and
+# diagonal of its sticking links where no joint holds it (StarOptions.regularisation
+# elsewhere), before the run stops. What it solved while held links were rigid, before they
+# were stiff joints: rings of rigid links around an interior vertex, pressed and
 # sticking, whose reactions are redundant around the ring (linear softening, decoupled
 # RCCM). At 1e-6 their Newton stalls at 1-7e-6 and stays there through 5,000 iterations;
 # at 1e-3 the same stars (dolfrag replay of the dumps: wall-bending-clamped at 38.9 ms,

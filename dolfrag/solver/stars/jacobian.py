@@ -18,7 +18,9 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
     C[position[i], position[j] - n_c]; the rows of the other unknowns, identity rows, are not
     stored. Frozen links have identity rows (see FROZEN); prescribed components identity
     rows and zero columns; sticking links get ``regularisation`` (StarOptions.regularisation)
-    on their reaction diagonal.
+    on the rows of their reaction diagonal that no joint's compliance holds (a closed link
+    without tensile strength: its normal row), so that the Jacobian of a piece of stiff joints
+    is exact and its stored factors predict the step exactly.
     Each link's block (its two copies and its reactions) is formed in ev.scratch (>= 12 d^2,)
     and then added where it goes (at (>= 3 d, int): its rows' and columns' positions): a
     helper call per entry, with its array arguments, cost six times the whole matrix
@@ -76,9 +78,10 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
             block[2 * d + i, 2 * d] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
             for k in range(1, d):
                 block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - (1.0 - eps) * P[i - 1, k - 1]
-        if stick:
+        if stick:  # the joint's compliance; the regularisation only where a row has none
             for i in range(d):
-                block[2 * d + i, 2 * d + i] += regularisation + (eps if i > 0 else 0.0)
+                own = eps if i > 0 else block[2 * d, 2 * d]
+                block[2 * d + i, 2 * d + i] += (eps if i > 0 else 0.0) + (regularisation if own == 0.0 else 0.0)
         for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
@@ -204,11 +207,12 @@ def kind_of(d, star, code):
 
 
 @njit(cache=True, error_model="numpy")
-def flip_rows(d, star, l, old, new, U, V):
+def flip_rows(d, star, l, old, new, U, V, regularisation):
     """The rows of U and V (each (2, N)) with J_new - J_old = U^T V for link l going from
     piece old to piece new (their CONTACT and SPRING bits differ only): its normal row (the
     contact row h rho n^T (x_B - x_A) against the open row r_N) and its spring's
-    h^2/4 w k_N n n^T in the momentum block (as _jacobian_into forms them). Returns the rank (1, 2)."""
+    h^2/4 w k_N n n^T in the momentum block (as _jacobian_into forms them, with its
+    ``regularisation``). Returns the rank (1, 2)."""
     q, h, slot_A, slot_B, frame, w, rho, fixed, k_N = star.q, star.h, star.slot_A, star.slot_B, star.frame, \
         star.w, star.rho, star.fixed, star.k_N
     a, b = slot_A[l], slot_B[l]
@@ -222,6 +226,8 @@ def flip_rows(d, star, l, old, new, U, V):
         V[0, b * d + j] = 0.0 if fixed[b * d + j] else x
         V[0, a * d + j] = 0.0 if fixed[a * d + j] else -x
     closed = normal_compliance(star.frozen[l], star.shift[l])  # the normal row's diagonal in contact
+    if (old & STICK) and closed == 0.0:  # (the pieces share their STICK bit)
+        closed = regularisation
     V[0, q + l] = (closed if c_new else 1.0) - (closed if c_old else 1.0)
     dN_old, dN_new = spring_normal_tangent(old, k_N[l]), spring_normal_tangent(new, k_N[l])
     if dN_new == dN_old:

@@ -234,7 +234,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
                 chord_from = scaled
             elif n_f > 0:  # the stored factors and a Woodbury correction for the flipped links
                 if _fresh(n_f, n_built, code, nw):
-                    n_u = _woodbury_update(d, star, N, n_f, scode, code, store, index, nw)
+                    n_u = _woodbury_update(d, star, N, n_f, scode, code, store, index, nw, options.regularisation)
                     n_built = n_f
             elif not (kind == EXACT and same):
                 factor_jacobian(d, star, code, ev, order, store, index, nw.position, options.regularisation)
@@ -384,14 +384,15 @@ def _fresh(n_f, n_built, code, nw):
 
 
 @njit(cache=True, error_model="numpy")
-def _woodbury_update(d, star, N, n_f, scode, code, store, index, nw):
-    """Build in nw the Woodbury correction of the factors (store, index) of the piece scode
-    for the n_f links in nw.flipped going to their pieces ``code``; returns its rank."""
+def _woodbury_update(d, star, N, n_f, scode, code, store, index, nw, regularisation):
+    """Build in nw the Woodbury correction of the factors (store, index) of the piece scode,
+    formed with ``regularisation``, for the n_f links in nw.flipped going to their pieces
+    ``code``; returns its rank."""
     n_u = 0
     flipped, built, U, V = nw.flipped, nw.built, nw.U, nw.V
     for i in range(n_f):
         l = flipped[i]
-        n_u += flip_rows(d, star, l, scode[l], code[l], U[n_u:n_u + 2, :N], V[n_u:n_u + 2, :N])
+        n_u += flip_rows(d, star, l, scode[l], code[l], U[n_u:n_u + 2, :N], V[n_u:n_u + 2, :N], regularisation)
         built[i, 0], built[i, 1] = l, code[l]
     woodbury_factor(store, index, nw.U[:n_u, :N], nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, nw.work,
                     nw.nonzero)

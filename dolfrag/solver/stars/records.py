@@ -33,7 +33,7 @@ Geometry = namedtuple("Geometry", (
     "fixed",        # (n_comps,) bool: prescribed
     "elimination",  # (n_comps + d n_links,) int: each star's unknown_order, at comp_off + d link_off
     "rigid_off",    # (n_stars + 1,) int: each star's rigid inverse (rigid.rigid_inverses; empty: none)
-    "rigid",        # the rigid inverses, n^2 values a star of n copies
+    "rigid",        # the rigid inverses, n^2 values a star of n copies (d n^2 if one is prescribed)
 ))
 
 StepData = namedtuple("StepData", (

@@ -14,8 +14,9 @@ edge weights w_l rho_l),
     (M + h^2 / eps L_g) x_j = h f_j + h [B^T W (r0 - P tau / eps)]_j      in each direction j:
 
 one symmetric positive definite n x n system per direction (n copies), the same at every
-step. Its inverse is stored (rigid_inverses), and the path costs one product with it and one
-residual evaluation, against a dense LU solve of q + L d unknowns per Newton iteration
+step, and the same in every direction where no copy of the star is prescribed. Its inverse is
+stored (rigid_inverses: one block for the star then, one per direction otherwise), and the path
+costs one product with it and one residual evaluation, against a dense LU solve of q + L d unknowns per Newton iteration
 (measured: a 3D star of ~150 unknowns, ~30 us). The residual then decides exactly, as for
 any Newton iterate: within rtol the star is solved; where a link's reaction leaves its cone
 (tension past its strength, shear past the cone) or a spring acts, it is not, and the star
@@ -39,25 +40,28 @@ HELD = CONTACT | STICK
 
 @njit(cache=True, error_model="numpy")
 def rigid_inverses(comp_off, link_off, slot_A, slot_B, weight, rho, fixed, frozen, mass, h, d):
-    """Per star s, d blocks of n x n (n its copies) at inverse[off[s]:off[s + 1]], one per
-    direction j: the inverse of M + h^2 / eps L_g on the copies free in j (zero in the rows
-    and columns of the prescribed ones), L_g the star's graph Laplacian (edge weights
-    weight * rho, Pa m or Pa: the records' Geometry fields), M the copies' masses (kg), h
-    the step (s), eps = COMPLIANCE. An empty slice where the star does not qualify (no link,
-    or a frozen link). Returns (off (n_stars + 1,) int, inverse)."""
+    """Per star s, at inverse[off[s]:off[s + 1]], the inverse of M + h^2 / eps L_g (n x n, n
+    its copies): one block where no copy of the star is prescribed, else d, one per direction
+    j on the copies free in j (zero in the rows and columns of the prescribed ones). L_g is
+    the star's graph Laplacian (edge weights weight * rho, Pa m or Pa: the records' Geometry
+    fields), M the copies' masses (kg), h the step (s), eps = COMPLIANCE. An empty slice where
+    the star does not qualify (no link, or a frozen link). One shared block is a third of the
+    memory in 3D, and of what the path reads per step. Returns
+    (off (n_stars + 1,) int, inverse)."""
     n_stars = len(comp_off) - 1
     off = np.zeros(n_stars + 1, dtype=np.int64)
     for s in range(n_stars):
-        l0, l1 = link_off[s], link_off[s + 1]
-        n = (comp_off[s + 1] - comp_off[s]) // d
-        off[s + 1] = off[s] + (d * n * n if l1 > l0 and not frozen[l0:l1].any() else 0)
+        p0, p1, l0, l1 = comp_off[s], comp_off[s + 1], link_off[s], link_off[s + 1]
+        n = (p1 - p0) // d
+        blocks = 1 if not fixed[p0:p1].any() else d
+        off[s + 1] = off[s] + (blocks * n * n if l1 > l0 and not frozen[l0:l1].any() else 0)
     inverse = np.zeros(off[n_stars])
     kappa = h * h / COMPLIANCE
     for s in range(n_stars):
         if off[s + 1] > off[s]:
             n, p0, l0, l1 = (comp_off[s + 1] - comp_off[s]) // d, comp_off[s], link_off[s], link_off[s + 1]
-            blocks = inverse[off[s]:off[s + 1]].reshape((d, n, n))
-            for j in range(d):
+            blocks = inverse[off[s]:off[s + 1]].reshape((-1, n, n))
+            for j in range(len(blocks)):
                 _block(n, slot_A[l0:l1], slot_B[l0:l1], kappa * weight[l0:l1] * rho[l0:l1],
                        mass[p0 + j:p0 + n * d:d], fixed[p0 + j:p0 + n * d:d], blocks[j])
     return off, inverse
@@ -90,7 +94,17 @@ def _block(n, slot_A, slot_B, k, m, fixed, out):
 
 @njit(cache=True, error_model="numpy")
 def _laplace(d, n, Q, v, out):
-    """out = Q[j] v on each direction j of the copies (v, out (n d,), copy-major)."""
+    """out = Q[j] v on each direction j of the copies (v, out (n d,), copy-major; Q (1 or d,
+    n, n): one block shared by the directions, or one each)."""
+    if len(Q) == 1:  # every direction in one pass over the block
+        for i in range(n):
+            for j in range(d):
+                out[i * d + j] = 0.0
+            for k in range(n):
+                Q_ik = Q[0, i, k]
+                for j in range(d):
+                    out[i * d + j] += Q_ik * v[k * d + j]
+        return
     for j in range(d):
         for i in range(n):
             s = 0.0
@@ -122,7 +136,7 @@ def rigid_solve(d, star, inverse, z, x, r, floor_m, floor_c, ev):
             A, B = a * d + j, b * d + j
             z[B] += h * w[l] * F + (k * x_in[A] if fixed[A] else 0.0)
             z[A] += -h * w[l] * F + (k * x_in[B] if fixed[B] else 0.0)
-    _laplace(d, n, inverse.reshape((d, n, n)), z, x)
+    _laplace(d, n, inverse.reshape((-1, n, n)), z, x)
     for c in range(q):
         if fixed[c]:
             x[c] = x_in[c]
