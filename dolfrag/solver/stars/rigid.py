@@ -15,12 +15,12 @@ edge weights w_l rho_l),
 
 one symmetric positive definite n x n system per direction (n copies), the same at every
 step, and the same in every direction where no copy of the star is prescribed. Its inverse is
-stored (rigid_inverses: one block for the star then, one per direction otherwise), and the path
-costs one product with it and one residual evaluation, against a dense LU solve of q + L d unknowns per Newton iteration
-(measured: a 3D star of ~150 unknowns, ~30 us). The residual then decides exactly, as for
-any Newton iterate: within rtol the star is solved; where a link's reaction leaves its cone
-(tension past its strength, shear past the cone) or a spring acts, it is not, and the star
-takes the full solve.
+stored (rigid_inverses: one block for the star then, one per direction otherwise), and the
+path costs one product with it and one residual evaluation, against a dense LU solve of
+q + L d unknowns per Newton iteration (measured: a 3D star of ~150 unknowns, ~30 us). The
+residual then decides exactly, as for any Newton iterate: within rtol the star is solved;
+where a link's reaction leaves its cone (tension past its strength, shear past the cone) or a
+spring acts, it is not, and the star takes the full solve.
 
 A prescribed component keeps its increment: in each direction the system is then that of
 the copies free in it, the couplings to the prescribed ones on the right-hand side. A star
