@@ -78,10 +78,11 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
             block[2 * d + i, 2 * d] = -mu[l] * e[l, i - 1] if (slipping and pressed) else 0.0
             for k in range(1, d):
                 block[2 * d + i, 2 * d + k] = 0.0 if stick else (1.0 if i == k else 0.0) - (1.0 - eps) * P[i - 1, k - 1]
-        if stick:  # the joint's compliance; the regularisation only where a row has none
+        if stick:  # the joint's tangential compliance; the regularisation where a row has none
             for i in range(d):
-                own = eps if i > 0 else block[2 * d, 2 * d]
-                block[2 * d + i, 2 * d + i] += (eps if i > 0 else 0.0) + (regularisation if own == 0.0 else 0.0)
+                block[2 * d + i, 2 * d + i] += eps if i > 0 else 0.0
+                if block[2 * d + i, 2 * d + i] == 0.0:
+                    block[2 * d + i, 2 * d + i] = regularisation
         for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
