@@ -108,8 +108,10 @@ def streamed_bytes(integ):
                jump.links.tangents, jump.links.weight, integ.star_comps]
     solver = integ.interface
     layout = getattr(solver, "layout", None)
-    if layout is not None:  # the star kernel's flat layout and its cached factors
-        arrays += [*layout.geometry(), *layout.cache(), layout.comps, layout.links]
+    if layout is not None:  # the star kernel's flat layout and its cached factors: the blocks taken
+        cache = layout.cache()
+        arrays += [*layout.geometry(), *cache.blocks, cache.factors[:cache.blocks.top[0]], layout.comps, layout.links]
+        arrays += [getattr(cache, f) for f in cache._fields if f not in ("blocks", "factors")]
     else:  # the elastic step's flat layout and inverses
         fl = solver.flat
         arrays += [fl.comps, fl.comp_off, fl.link_off, fl.slot_A, fl.slot_B, solver.K, solver.inverse, solver.inv_off]

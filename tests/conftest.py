@@ -47,6 +47,12 @@ def dolfrag_cli(*args, cwd=ROOT):
                           text=True, cwd=cwd, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
 
 
+def copied_cache(cache):
+    """A copy of a star cache given as a list of its records.Cache fields (its blocks a
+    record of arrays), to solve from again."""
+    return [c._make(a.copy() for a in c) if isinstance(c, tuple) else c.copy() for c in cache]
+
+
 def rectangle(length=0.12, width=0.04):
     return SimpleNamespace(kind="rectangle", tdim=2, length=length, width=width, structured=False)
 

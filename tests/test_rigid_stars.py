@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import mpirun
+from conftest import copied_cache, mpirun
 from mpi4py import MPI
 
 from dolfrag.case import load_case
@@ -75,7 +75,7 @@ def _solve(geometry, data, cache, rigid, todo=None):
 
 def _held(cache):
     """The cache of stars last closed and sticking on every link: RIGID, no factors."""
-    cache = [a.copy() for a in cache]
+    cache = copied_cache(cache)
     cache[4][:] = HELD
     cache[6][:] = star_kernel.RIGID
     return cache

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
+from conftest import copied_cache
 
 from dolfrag.case import load_case
 from dolfrag.interface import laws, models
@@ -638,7 +639,7 @@ def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
             changed = dict(star, k_N=star["k_N"] * factor, k_T=star["k_T"] * factor)
             _, new_data, fresh_cache = _kernel_args(changed)
             x_fresh, _, fresh = _solve(changed, geometry, new_data, fresh_cache)
-            stale = [c.copy() for c in cache]
+            stale = copied_cache(cache)
             stale[6][0] = star_kernel.STALE
             x_stale, _, counters = _solve(changed, geometry, new_data, stale)
             # a random star that Newton cannot solve (stalled or unconverged: a run would stop
@@ -689,7 +690,7 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
             continue
         tried += 1
         assert (cache[5][slipping, 2] == 0.0).all()  # held directions: the projection left out
-        held = [c.copy() for c in cache]
+        held = copied_cache(cache)
         x2, r2, counters = _solve(star, geometry, data, held)
         # a star the first solve finished after Gauss-Seidel (30 iterations and more) holds
         # directions exact to RTOL only: its prediction may land 1e-8 off, one Newton step short
@@ -698,7 +699,7 @@ def test_a_3d_star_slipping_the_same_way_is_solved_by_its_held_slip_prediction()
         if counters[star_kernel.N_FIRST]:
             assert held[6][0] == star_kernel.APPROXIMATE and np.array_equal(held[2], cache[2])
         for angle in (np.pi / 2, 0.035):
-            turned = [c.copy() for c in cache]
+            turned = copied_cache(cache)
             turned[5] = _turned(cache[5], slipping, angle)
             x3, _, counters = _solve(star, geometry, data, turned)
             assert counters[star_kernel.N_FIRST] == 0 and not counters[star_kernel.N_UNCONVERGED]
@@ -742,7 +743,7 @@ def test_a_restart_from_zero_takes_the_schedule_of_a_start_from_zero():
         _keep(geometry, data, x, r, cache)
         if cache[6][0] == star_kernel.NONE:
             continue
-        turned = [c.copy() for c in cache]
+        turned = copied_cache(cache)
         turned[5] = _turned(cache[5], slice(None), np.pi / 2)  # a wrong held slip: a poor prediction
         _, _, again = _solve(star, geometry, data, turned)
         if again[star_kernel.ITERATIONS] > DEFAULT.restart:  # it restarted

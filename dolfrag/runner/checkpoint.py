@@ -26,8 +26,8 @@ _NUMBERS = (np.ndarray, float, int, bool, np.number)
 def _value(value):
     if hasattr(value, "x") and hasattr(value.x, "array"):  # a dolfinx Function
         return value.x.array.copy()
-    if isinstance(value, np.ndarray):
-        return value.copy()
+    if isinstance(value, np.ndarray):  # a read-only array of its own is a copy already (a property's)
+        return value if value.flags.owndata and not value.flags.writeable else value.copy()
     if isinstance(value, list) and value and all(hasattr(item, "__dict__") for item in value):
         return [object_state(item) for item in value]
     return copy.deepcopy(value)

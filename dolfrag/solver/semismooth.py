@@ -51,6 +51,7 @@ from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.interrupt import Responsive, StepInterrupted
 from dolfrag.solver.star_kernel import (DEFAULT, ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, Cache, Geometry,
                                          Outputs, StepData, empty_cache)
+from dolfrag.solver.stars.blocks import gather, give_back_all, scatter
 from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.timing import PhaseTimer
 
@@ -107,11 +108,11 @@ class StarLayout(FlatStars):
     layout (interface/stars.FlatStars), each link's frame, weight, step stiffness rho
     (Pa/m) and whether both its copies are prescribed (frozen), each component's mass and
     whether it is prescribed, each star's elimination order of its unknowns, and the cache
-    of each star's last Jacobian factors."""
+    of each star's last Jacobian factors (blocks of one pool: solver/stars/blocks.py)."""
     # what a checkpoint keeps: the cached factors decide which stars reuse theirs, so a
     # resumed run takes the same iterates as an uninterrupted one; of the factors only those
-    # of the stars that hold some (held_factors), restored once ``cached`` is
-    STATE = ("cached", "held_factors", "pivots", "codes", "slip_dir", "factored")
+    # of the stars that hold some (held_factors), restored once ``cached`` and ``pivots`` are
+    STATE = ("cached", "pivots", "held_factors", "codes", "slip_dir", "factored")
     # what a step's rewind keeps (runner/checkpoint.Rewind): the factors are most of a rank's
     # state (533 of 585 MB for the 0.1 m bunker), and copying them before every guarded step
     # took 41 % of the 0.04 m panel's time; a rewound step drops them instead (rewound)
@@ -132,7 +133,7 @@ class StarLayout(FlatStars):
                                                    self.weight, self.rho, self.frozen, self.mass, self.fixed, h)
         # per star its factors, what they are (star_kernel.NONE, ...), per link their piece, slip
         # directions and (k_N, k_T, mu): records.Cache
-        (self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
+        (self.blocks, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
          self.factored) = empty_cache(self.comp_off, self.link_off, d)
 
     @property
@@ -152,23 +153,36 @@ class StarLayout(FlatStars):
     @property
     def held_factors(self):
         """The factors of the stars that hold some (``cached`` neither NONE nor RIGID), one
-        star after the other: what a checkpoint keeps of ``factors``. The other stars' blocks
-        are formed before they are read."""
-        return self.factors[self._holding()]
+        star after the other, of each the n_c N values its solves read (n_c its coupled
+        unknowns, the first entry of its pivots): what a checkpoint keeps of ``factors``.
+        Read-only: a copy already, which the checkpoint takes as it is."""
+        holds, used = self._used()
+        out = np.empty(used.sum())
+        gather(self.blocks, self.factors, used, out)
+        out.flags.writeable = False
+        return out
 
     @held_factors.setter
     def held_factors(self, values):
-        self.factors[self._holding()] = values
+        """From held_factors' values, or from a checkpoint written when a star's whole block was
+        kept (N^2 values each)."""
+        holds, used = self._used()
+        N = self.blocks.size
+        whole = values.size != used.sum() and values.size == (N[holds] ** 2).sum()
+        give_back_all(self.blocks)
+        scatter(self.blocks, self.factors, values, holds, used, np.where(holds, N * N, 0) if whole else used)
 
-    def _holding(self):
-        """Per entry of ``factors``, whether its star holds factors."""
+    def _used(self):
+        """Per star whether it holds factors, and how many values of its block they are."""
         holds = (self.cached != star_kernel.NONE) & (self.cached != star_kernel.RIGID)
-        return np.repeat(holds, np.diff(self.fac_off))
+        n_c = self.pivots[self.piv_off[:-1]]
+        return holds, np.where(holds, n_c * self.blocks.size, 0)
 
     def rewound(self):
         """After a rewind: no star has stored factors (star_kernel.NONE), as before the first
-        step, since the abandoned step may have formed some in place."""
+        step, since the abandoned step may have formed some in place; their blocks are free."""
         self.cached[:] = star_kernel.NONE
+        give_back_all(self.blocks)
 
     def geometry(self):
         """The layout as the kernel reads it (records.Geometry)."""
@@ -177,7 +191,7 @@ class StarLayout(FlatStars):
     def cache(self):
         """The stored factors as the kernel reads them (records.Cache): built at each call, as
         a checkpoint's restore replaces the arrays."""
-        return Cache(self.fac_off, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
+        return Cache(self.blocks, self.piv_off, self.factors, self.pivots, self.codes, self.slip_dir, self.cached,
                      self.factored)
 
 

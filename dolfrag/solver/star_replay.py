@@ -16,7 +16,8 @@ import numpy as np
 
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import CONTACT, SLIP, STICK
-from dolfrag.solver.star_kernel import DEFAULT, Cache, Geometry, StepData, empty_outputs, star_at
+from dolfrag.solver.star_kernel import DEFAULT, Geometry, StepData, empty_cache, empty_outputs, star_at
+from dolfrag.solver.stars.blocks import take
 
 START = {star_kernel.NONE: "from zero", star_kernel.APPROXIMATE: "from its held-slip prediction",
          star_kernel.EXACT: "predicted", star_kernel.STALE: "predicted by stale factors"}
@@ -91,12 +92,14 @@ def replay(path, regularisation=DEFAULT.regularisation, sweep_tol=DEFAULT.sweep_
                         r_n=star["r_n"] if "r_n" in star else np.zeros_like(star["g_n"]))
         q, L = star["comp_off"][1], star["link_off"][1]
         N = q + L * d
-        cache = Cache(np.array([0, N * N]), np.array([0, 2 * N + 1]), np.zeros(N * N), np.zeros(2 * N + 1, np.int64),
-                      star["codes"], star["slip_dir"], data["cached"][one].copy(), star["factored"].copy())
+        cache = empty_cache(star["comp_off"], star["link_off"], d)._replace(
+            codes=star["codes"], slip_dir=star["slip_dir"], cached=data["cached"][one].copy(),
+            factored=star["factored"].copy())
         if cache.cached[0] != star_kernel.NONE:  # the stored factors its prediction used
             k_N, k_T, mu = star["factored"].T.copy()  # the data they were formed with, by the run's first pass
+            at = take(cache.blocks, 0)
             star_kernel.factor_piece(d, star_at(geometry, step._replace(mu=mu, k_N=k_N, k_T=k_T), 0), cache.codes,
-                                     cache.slip_dir, elimination, cache.factors, cache.pivots,
+                                     cache.slip_dir, elimination, cache.factors[at:at + N * N], cache.pivots,
                                      np.empty(N + 3 * d, np.int64), star_kernel.evaluation(d, q, L),
                                      DEFAULT.regularisation)
         out = empty_outputs(1, q, L, d)

@@ -5,6 +5,7 @@ Newton inside. A package of one idea per module, from the bottom up:
     records.py       the records the loop reads and writes (layout, step data, cache,
                      outputs, one star's slices) and the codes it writes in them
     options.py       StarOptions, the Newton's tuning, one record
+    blocks.py        where each star's stored factors live: blocks of one pool
     lu.py            dense LU in place, the solves from a star's stored factors, Woodbury
     residual.py      a star's residual and the branches of its projections at an iterate
     jacobian.py      its generalised Jacobian, LU with the identity rows set apart, pieces

@@ -5,6 +5,7 @@ import numpy as np
 from numba import njit
 
 from dolfrag.solver.active_set import SLIP
+from dolfrag.solver.stars.blocks import give_back, take
 from dolfrag.solver.stars.gauss_seidel import sweep_space
 from dolfrag.solver.stars.jacobian import factor_piece, kind_of, note_factored
 from dolfrag.solver.stars.newton import newton_space, solve_each
@@ -123,8 +124,9 @@ def keep_pieces(stars, geometry, data, x, r, cache, options):
     (factor_piece), with the friction, cohesion and springs of ``data`` (after the step);
     ``cached`` says what they are (kind_of). A star that qualifies for the rigid path
     (stars/rigid.py) and converged closed and sticking on every link stores no factors, only
-    that piece (RIGID), where options.rigid. Records as solve_stars; of ``options`` only the
-    regularisation (the stored factors are Newton's matrix) and ``rigid`` are read."""
+    that piece (RIGID), where options.rigid, and gives its block back (blocks.py). Records as
+    solve_stars; of ``options`` only the regularisation (the stored factors are Newton's
+    matrix) and ``rigid`` are read."""
     if geometry.frame.shape[1] == 2:  # the dimension a compile-time constant, as in solve_stars
         _keep_pieces(2, stars, geometry, data, x, r, cache, options.regularisation, options.rigid)
     else:
@@ -151,13 +153,15 @@ def _keep_pieces(d, stars, geometry, data, x, r, cache, regularisation, rigid):
         if rigid and geometry.rigid_off[s + 1] > geometry.rigid_off[s] and held_piece(code[:L], star.shift):
             cache.codes[l0:l1] = code[:L]  # no factors: the rigid path (stars/rigid.py) next
             cache.cached[s] = RIGID
+            give_back(cache.blocks, s)
             continue
         for l in range(L):
             if code[l] & SLIP:
                 cache.slip_dir[l0 + l, :d - 1] = e[l, :d - 1]
                 cache.slip_dir[l0 + l, d - 1] = 0.0
+        at = take(cache.blocks, s)
         factor_piece(d, star, code[:L], cache.slip_dir[l0:l1], geometry.elimination[p0 + d * l0:p0 + d * l0 + N],
-                     cache.factors[cache.fac_off[s]:cache.fac_off[s] + N * N],
+                     cache.factors[at:at + N * N],
                      cache.pivots[cache.piv_off[s]:cache.piv_off[s] + 2 * N + 1], position, ev, regularisation)
         cache.codes[l0:l1] = code[:L]
         note_factored(star, cache.factored[l0:l1])

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from dolfrag.solver.active_set import CONTACT, SLIP, SPRING, affine_constant
+from dolfrag.solver.stars.blocks import give_back, take
 from dolfrag.solver.stars.gauss_seidel import gauss_seidel
 from dolfrag.solver.stars.jacobian import factor_jacobian, flip_rows, kind_of, note_factored
 from dolfrag.solver.stars.lu import solve_star, woodbury_factor, woodbury_solve
@@ -24,8 +25,9 @@ from dolfrag.solver.stars.rigid import held_piece, rigid_solve
 # back to; solve_star's (work, nonzero) and factor_jacobian's (position); the Woodbury
 # correction's (U, V, Z (2 flips, N_max), the capacitance and its pivots, t; the flipped
 # links and the (link, piece) pairs it was built for); the factors Newton forms for a star
-# whose stored ones are APPROXIMATE (held_store, held_index, held_code); and per link the
-# slip direction and scale of Newton's last factors (formed_at).
+# whose stored ones are APPROXIMATE (held_store, held_index, held_code) or that has no block
+# (held_store: blocks.py); and per link the slip direction and scale of Newton's last
+# factors (formed_at).
 NewtonSpace = namedtuple("NewtonSpace", "x r code_in factored_in delta direction best_x best_r base_x base_r work "
                                         "position nonzero U V Z cap cap_piv t flipped built held_store held_index "
                                         "held_code formed_at")
@@ -69,7 +71,8 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
     per-iteration kernels are called, whose entry refcounts the pruning removes or few."""
     comp_off, link_off, elimination = geometry.comp_off, geometry.link_off, geometry.elimination
     rigid_off, rigid = geometry.rigid_off, geometry.rigid
-    factors, fac_off, pivots, piv_off = cache.factors, cache.fac_off, cache.pivots, cache.piv_off
+    factors, blocks, block_at, pivots, piv_off = cache.factors, cache.blocks, cache.blocks.at, cache.pivots, \
+        cache.piv_off
     codes, cached, factored, slip_dir = cache.codes, cache.cached, cache.factored, cache.slip_dir
     status, residual, counters = out.status, out.residual, out.counters
     x_out, reaction_out, r_out, gbar_out, slip_out = out.x, out.reaction, out.r, out.gbar, out.slip
@@ -107,7 +110,12 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
                 continue
         if cached[s] == RIGID:  # no factors to predict with
             cached[s] = NONE
-        store, index = factors[fac_off[s]:fac_off[s] + N * N], pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
+        # a star without a block (it kept no factors: blocks.py) forms Newton's in a workspace,
+        # and takes one only if it keeps them
+        loose = block_at[s] < 0
+        at = 0 if loose else block_at[s]
+        store = nw.held_store[:N * N] if loose else factors[at:at + N * N]
+        index = pivots[piv_off[s]:piv_off[s] + 2 * N + 1]
         order = elimination[p0 + d * l0:p0 + d * l0 + N]
         scode = codes[l0:l1]
         # the start: zero but the prescribed increments, or, from the stored factors (store,
@@ -175,6 +183,18 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
                 else:
                     cached[s] = _kept(done, iteration == 1, predicted, held, kind, same,
                                             index[0] >= options.woodbury)
+                if done and options.rigid and r1 > r0 and held_piece(code[:L], star.shift):
+                    # closed and sticking on every link: the rigid path next, as keep_pieces
+                    # decides for a star without factors (a star kept on its exact factors
+                    # never went back to it: after a restart, none did)
+                    for l in range(L):
+                        codes[l0 + l] = code[l]
+                    cached[s] = RIGID
+                    give_back(blocks, s)
+                elif loose and cached[s] != NONE:
+                    at = take(blocks, s)
+                    for i in range(index[0] * N):
+                        factors[at + i] = store[i]
                 # the outcome: status and counters, for an unconverged star what star_replay
                 # needs to start it again (its entry pieces, data and start), its residual, and
                 # the iterate with what evaluate left of it in ev
@@ -340,7 +360,8 @@ def _keep_newton_factors(d, s, star, l0, held, nw, cache):
     N = star.q + L * d
     codes, slip_dir = cache.codes, cache.slip_dir
     if held:
-        store = cache.factors[cache.fac_off[s]:cache.fac_off[s] + N * N]
+        at = cache.blocks.at[s]
+        store = cache.factors[at:at + N * N]
         index = cache.pivots[cache.piv_off[s]:cache.piv_off[s] + 2 * N + 1]
         held_store, held_index, held_code = nw.held_store, nw.held_index, nw.held_code
         n_c = held_index[0]

@@ -20,6 +20,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from dolfrag.solver.stars.blocks import empty_blocks
+
 Geometry = namedtuple("Geometry", (
     "comp_off",     # (n_stars + 1,) int: each star's first component
     "link_off",     # (n_stars + 1,) int: each star's first link
@@ -53,9 +55,9 @@ StepData = namedtuple("StepData", (
 ))
 
 Cache = namedtuple("Cache", (
-    "fac_off",   # (n_stars + 1,) int: each star's factors, N^2 values
+    "blocks",    # blocks.Blocks: where each star's factors are in ``factors`` (N^2 values)
     "piv_off",   # (n_stars + 1,) int: each star's index, 2 N + 1 values (factor_jacobian)
-    "factors",   # the LU factors of each star's stored Jacobian
+    "factors",   # the pool of blocks holding the LU factors of the stars' stored Jacobians
     "pivots",    # int: their index (the coupled unknowns, the unit ones, the pivots)
     "codes",     # (n_links,) int8: the piece the factors are of
     "slip_dir",  # (n_links, d): their 3D slip directions and projection scales (piece_branches)
@@ -120,10 +122,10 @@ def empty_cache(comp_off, link_off, d):
     """A Cache with room for every star's factors and nothing stored (NONE)."""
     q, L = np.diff(comp_off), np.diff(link_off)
     N = q + L * d
-    fac_off = np.concatenate([[0], np.cumsum(N * N)]).astype(np.int64)
+    blocks, pool = empty_blocks(N)
     piv_off = np.concatenate([[0], np.cumsum(2 * N + 1)]).astype(np.int64)
     n_links = int(link_off[-1])
-    return Cache(fac_off, piv_off, np.zeros(fac_off[-1]), np.zeros(piv_off[-1], np.int64),
+    return Cache(blocks, piv_off, np.zeros(pool), np.zeros(piv_off[-1], np.int64),
                  np.zeros(n_links, np.int8), np.zeros((n_links, d)), np.zeros(len(q), np.int8),
                  np.zeros((n_links, 3)))
 
