@@ -69,10 +69,10 @@ def run(case, out, quiet=False, comm=None, resume=False):
     history, rows, observers, reports, fields, output = _observers(ctx, saved and first_step)
     stateful = _stateful(integ, output, rows + observers)
     before = 0.0  # s of wall time of the segments before this one
-    if saved is not None:
-        states = _by_name(saved["objects"], rows + observers)
+    if saved is not None:  # the loaded states dropped as they are restored: not kept twice (the star factors)
+        states = _by_name(saved.pop("objects"), rows + observers)
         for name, obj in stateful.items():
-            checkpoint.restore_object(obj, states[name])
+            checkpoint.restore_object(obj, states.pop(name))
         before = saved["wall_time_s"]
 
     def save(k):
