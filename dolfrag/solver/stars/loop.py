@@ -70,7 +70,8 @@ def solve_stars(geometry, data, cache, out, options, todo=None, abort=None):
     an exact prediction solved it or where they are a large star's reference piece
     (StarOptions.flips), becomes STALE where Newton's last Jacobian was of a 3D slip
     (newton._keep_newton_factors; slip_dir then holds the directions and scales it was
-    formed at), else NONE.
+    formed at), RIGID where the star converged closed and sticking on every link and
+    qualifies for the rigid path (its block given back: blocks.py), else NONE.
 
     Writes into ``out`` x, reaction (N) per component; r (Pa), gbar, slip (the springs' jump
     and the step's jump increment g_{n+1} - g_n = h B (v_- + x), m) per link; per star
