@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi4py import MPI
 from conftest import copied_cache
+from mpi4py import MPI
 
 from dolfrag.case import load_case
 from dolfrag.interface import laws, models
@@ -361,10 +361,13 @@ def test_lu_factors_are_those_of_one_pivot_at_a_time():
 
 @pytest.mark.parametrize("d", [2, 3])
 def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
+    """The stored factors, with the identity rows set apart and the held links' reactions
+    condensed, solve the star's Jacobian as LAPACK does."""
     rng = np.random.default_rng(21 + d)
-    apart = compared = 0
+    apart = compared = condensed = 0
     for trial in range(40):
-        star = _star(rng, d, fixed_comps=[0, 1] if trial % 2 else [])
+        # 8 copies: room for the condensed links' records (jacobian.factor_jacobian) in 3D too
+        star = _star(rng, d, k=8, L=12, fixed_comps=[0, 1] if trial % 2 else [])
         star["frozen"] = rng.random(star["L"]) < 0.15
         q, L = star["q"], star["L"]
         N = q + L * d
@@ -381,19 +384,28 @@ def test_star_factors_with_unit_rows_set_apart_solve_like_lapack(d):
         for elimination in (_elimination(star), rng.permutation(N)):
             store, index = _factor(star, code, branch, e, elimination)
             n_c = index[0]
-            apart += N - n_c
-            unit = index[1 + n_c:1 + N]  # set apart without being formed: identity rows of J
-            assert (J[unit] == np.eye(N)[unit]).all()
+            order = index[1:1 + N]
+            held = order[n_c:] < 0  # condensed: marked -1 - u, after the unit ones
+            unit, reactions = order[n_c:][~held], -1 - order[n_c:][held]
+            apart += len(unit)
+            condensed += len(reactions)
+            assert sorted(np.concatenate([order[:n_c], unit, reactions])) == list(range(N))
+            assert (J[unit] == np.eye(N)[unit]).all()  # set apart without being formed: identity rows of J
+            # a condensed link's reaction rows: its own diagonal (the joint's compliance) and
+            # its copies' columns only
+            assert (J[np.ix_(reactions, reactions)] == np.diag(np.diag(J[np.ix_(reactions, reactions)]))).all()
+            assert (J[np.ix_(reactions, unit[unit >= q])] == 0).all()
             # a right-hand side zero on half its entries too: solve_star skips the unit
             # unknowns' zero residuals
             for b in (R, np.where(rng.random(N) < 0.5, 0.0, R)):
                 y = b.copy()
-                lu.solve_star(store, index, y, np.empty(N), np.empty(N, np.int64))
+                lu.solve_star(d, store, index, y, np.empty(N), np.empty(N, np.int64))
                 expected = np.linalg.solve(J, b)
                 # both backward stable on the same matrix: agreement to condition x round-off
                 assert np.allclose(y, expected, rtol=0, atol=1e-13 * np.linalg.cond(J) * np.abs(expected).max())
     assert compared >= 30
     assert apart > 2 * compared * 2  # unit rows were set apart (open links, frictionless links, prescribed, frozen)
+    assert condensed >= 2 * 10 * d  # and held links condensed: ten at least (counted in both orders)
 
 
 def _kuhn_star():
@@ -481,10 +493,10 @@ def test_flipped_links_solve_with_the_stored_factors_and_a_woodbury_correction(d
         compared += 1
         Z, cap, cap_piv = np.empty((n_u, N)), np.empty(n_u * n_u), np.empty(n_u, np.int64)
         buffers = (np.empty(N), np.empty(N, np.int64))
-        lu.woodbury_factor(store, index, U, V, Z, cap, cap_piv, *buffers)
+        lu.woodbury_factor(d, store, index, U, V, Z, cap, cap_piv, *buffers)
         b = rng.normal(size=N)
         y = b.copy()
-        lu.woodbury_solve(store, index, V, Z, cap, cap_piv, y, np.empty(n_u), *buffers)
+        lu.woodbury_solve(d, store, index, V, Z, cap, cap_piv, y, np.empty(n_u), *buffers)
         expected = np.linalg.solve(J_new, b)
         # the correction adds the capacitance's condition to the old factors' round-off
         capacitance = np.eye(n_u) + V @ Z.T

@@ -156,7 +156,7 @@ class StarLayout(FlatStars):
         star after the other, of each the n_c N values its solves read (n_c its coupled
         unknowns, the first entry of its pivots): what a checkpoint keeps of ``factors``.
         Read-only: a copy already, which the checkpoint takes as it is."""
-        holds, used = self._used()
+        used = self._used()[1]
         out = np.empty(used.sum())
         gather(self.blocks, self.factors, used, out)
         out.flags.writeable = False

@@ -11,12 +11,13 @@ from dolfrag.solver.stars.residual import B_CONTACT, B_PRESSED, B_SCALE, B_SLIP,
 
 
 @njit(cache=True, error_model="numpy")
-def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
+def _jacobian_into(d, star, code, ev, position, n_c, A, C, K, first, at, regularisation):
     """The generalised Jacobian of (R_m, phi) of ``star`` (records.Star) at the point evaluate
     last saw (ev's branch and e, and code), added into the rows of the unknowns with
     position (N,) below n_c: entry (i, j) into A[position[i], position[j]] (n_c, n_c) where position[j] < n_c, else into
     C[position[i], position[j] - n_c]; the rows of the other unknowns, identity rows, are not
-    stored. Frozen links have identity rows (see FROZEN); prescribed components identity
+    stored. A link whose reactions have positions from ``first`` on is condensed: its block's
+    Schur complement goes into A and its record (_condense) into K. Frozen links have identity rows (see FROZEN); prescribed components identity
     rows and zero columns; sticking links get ``regularisation`` (StarOptions.regularisation)
     on the rows of their reaction diagonal that no joint's compliance holds (a closed link
     without tensile strength: its normal row), so that the Jacobian of a piece of stiff joints
@@ -86,6 +87,9 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
         for c in range(3 * d):  # where the block's rows and columns go (-1: a prescribed component's)
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
+        if at[2 * d] >= first:
+            _condense(d, block, at, n_c, A, K[(at[2 * d] - first) // d * _record_size(d):])
+            continue
         for r in range(3 * d):
             i = at[r]
             if i < 0 or i >= n_c:
@@ -106,56 +110,138 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, at, regularisation):
             A[position[i], position[i]] += 1.0
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_size(d):
+    """The values a condensed link keeps (_condense): K_rr^-1 (d), G (2 d x d), H (d x 2 d)."""
+    return 4 * d * d + d
+
+
+@njit(cache=True, error_model="numpy")
+def _condense(d, block, at, n_c, A, record):
+    """Condense a held link's reactions out of its block (3 d x 3 d: copy a, copy b, its
+    reactions; at (3 d,) their positions, -1 a prescribed component's): its reaction rows
+    K_rx y_x + K_rr y_r = R_r involve only its own copies, and K_rr is diagonal (the joint's
+    compliance, active_set.COMPLIANCE), so y_r = K_rr^-1 R_r - H y_x with H = K_rr^-1 K_rx,
+    and the copies' rows get K_xx - K_xr H into A and G = K_xr K_rr^-1 into their
+    right-hand side (lu.solve_star). Prescribed components' rows of G and columns of H are
+    zero: their rows are the identity, their columns zero."""
+    inverse = record[:d]
+    G = record[d:d + 2 * d * d].reshape((2 * d, d))
+    H = record[d + 2 * d * d:4 * d * d + d].reshape((d, 2 * d))
+    for i in range(d):
+        inverse[i] = 1.0 / block[2 * d + i, 2 * d + i]
+    for r in range(2 * d):
+        for i in range(d):
+            G[r, i] = block[r, 2 * d + i] * inverse[i] if at[r] >= 0 else 0.0
+            H[i, r] = inverse[i] * block[2 * d + i, r] if at[r] >= 0 else 0.0
+    for r in range(2 * d):
+        i = at[r]
+        if i < 0 or i >= n_c:
+            continue
+        for c in range(2 * d):
+            j = at[c]
+            if j < 0:
+                continue
+            s = block[r, c]
+            for k in range(d):
+                s -= G[r, k] * block[2 * d + k, c]
+            A[i, j] += s
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _held_link(l, frozen, shift, branch):
+    """Whether link l of a star is a closed, sticking joint (a rigid cohesive link, shift > 0
+    Pa, not frozen): its reactions' rows are then local and their diagonal invertible."""
+    return (not frozen[l] and shift[l] > 0 and branch[l, B_CONTACT] > 0 and branch[l, B_STICK] > 0
+            and not branch[l, B_SLIP] > 0)
+
+
 @njit(cache=True, error_model="numpy")
 def jacobian(d, star, code, ev, J, regularisation):
     """The whole generalised Jacobian J (N, N), every row stored (_jacobian_into): the
     matrix the stored factors stand for, as the tests check it."""
     N = star.q + star.L * d
     J[:, :] = 0.0
-    _jacobian_into(d, star, code, ev, np.arange(N), N, J, J[:, :0], np.empty(3 * d, dtype=np.int64), regularisation)
+    _jacobian_into(d, star, code, ev, np.arange(N), N, J, J[:, :0], J[0, :0], N, np.empty(3 * d, dtype=np.int64),
+                   regularisation)
     return N
 
 
 @njit(cache=True, error_model="numpy")
 def factor_jacobian(d, star, code, ev, elimination, store, index, position, regularisation):
     """Factorise a star's Jacobian (_jacobian_into, arguments as there) with its unit rows set
-    apart: an unknown whose row is that of the identity (an open link's normal row, a
-    tangential row neither sticking nor slipping, a frozen link, a prescribed component) is
-    its own residual's, and leaves the others a system on the coupled unknowns only (an
-    intact RCCM star in tension: its q momentum rows alone; a 2D star: LU of ~18 rows
-    instead of 24 costs half). The coupled unknowns are eliminated in the star's
-    ``elimination`` order (N,: unknown_order). Only their rows are formed, straight into
-    store (>= N^2): the LU factors of the coupled block (n_c, n_c), then its columns of the
-    unit unknowns (n_c, N - n_c); index (>= 2 N + 1): n_c, the coupled unknowns then the unit
-    ones, the pivots. position (>= N + 3 d, int) workspace; ev (residual.Evaluation) gives
-    the branches and e of the point, and its scratch. (Formed whole and then copied, a 3D
-    star's Jacobian cost more than its LU: measured on the damaged 3D bar, 5 + 13 ms of a
-    101 ms kernel call, the LU 17 ms.)"""
-    q, L, fixed, frozen, branch = star.q, star.L, star.fixed, star.frozen, ev.branch
+    apart and its held links condensed. An unknown whose row is that of the identity (an open
+    link's normal row, a tangential row neither sticking nor slipping, a frozen link, a
+    prescribed component) is its own residual's, and leaves the others a system on the coupled
+    unknowns only (an intact RCCM star in tension: its q momentum rows alone; a 2D star: LU of
+    ~18 rows instead of 24 costs half). The reactions of a held link (_held_link: a closed,
+    sticking joint) are eliminated link by link (_condense), which leaves the LU the copies and
+    the other links' reactions: on a cracking 3D star of ~180 unknowns about 80 instead of
+    ~170. The coupled unknowns are eliminated in the star's ``elimination`` order (N,:
+    unknown_order). Only their rows are formed, straight into store (>= N^2): the LU factors
+    of the coupled block (n_c, n_c), its columns of the unit unknowns (n_c, n_u), then a record
+    per condensed link (_record_size); index (>= 2 N + 1): n_c, the coupled unknowns, the unit
+    ones, the condensed ones (as -1 - u, a link's d reactions together), the pivots, then each
+    condensed link's two copies. Links are condensed only where the coupled block keeps at
+    least _record_size(d) / d rows, so that everything lies in the first n_c N values of
+    store. position (>= N + 3 d, int) workspace; ev (residual.Evaluation) gives the branches
+    and e of the point, and its scratch. (Formed whole and then copied, a 3D star's Jacobian
+    cost more than its LU: measured on the damaged 3D bar, 5 + 13 ms of a 101 ms kernel call,
+    the LU 17 ms.)"""
+    q, L, fixed, frozen, shift, branch = star.q, star.L, star.fixed, star.frozen, star.shift, ev.branch
     N = q + L * d
     order = index[1:1 + N]
-    n_c, n_t = 0, N
+    n_held, n_coupled = 0, 0
+    for l in range(L):
+        if _held_link(l, frozen, shift, branch):
+            n_held += 1
+    for u in range(N):
+        if not _unit(u, q, L, fixed, frozen, branch):
+            n_coupled += 1
+    if n_coupled - d * n_held < _record_size(d) // d:
+        n_held = 0
+    first = N - d * n_held
+    n_c, n_t = 0, first
     for u in elimination:
-        if u < q:
-            unit = fixed[u]
-        else:
-            l = (u - q) % L
-            moves = branch[l, B_SLIP] > 0 if u >= q + L else branch[l, B_CONTACT] > 0  # tangential, normal
-            unit = frozen[l] or not (moves or branch[l, B_STICK] > 0)
-        if unit:
+        if u >= q and n_held > 0 and _held_link((u - q) % L, frozen, shift, branch):
+            continue
+        if _unit(u, q, L, fixed, frozen, branch):
             n_t -= 1
             order[n_t] = u
         else:
             order[n_c] = u
             n_c += 1
     index[0] = n_c
-    for i in range(N):
+    for i in range(first):
         position[order[i]] = i
-    store[:n_c * N] = 0.0
+    copies = index[1 + N + n_c:]
+    k = 0
+    for l in range(L):
+        if n_held > 0 and _held_link(l, frozen, shift, branch):
+            for i in range(d):
+                u = q + i * L + l
+                order[first + d * k + i] = -1 - u
+                position[u] = first + d * k + i
+            copies[2 * k], copies[2 * k + 1] = star.slot_A[l], star.slot_B[l]
+            k += 1
+    n_u = first - n_c
+    end = n_c * (n_c + n_u) + n_held * _record_size(d)
+    store[:n_c * N] = 0.0  # all its solves read (and a checkpoint keeps), the same each time
     A = store[:n_c * n_c].reshape((n_c, n_c))
-    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
-    _jacobian_into(d, star, code, ev, position[:N], n_c, A, C, position[N:], regularisation)
+    C = store[n_c * n_c:n_c * (n_c + n_u)].reshape((n_c, n_u))
+    _jacobian_into(d, star, code, ev, position[:N], n_c, A, C, store[n_c * (n_c + n_u):end], first, position[N:],
+                   regularisation)
     lu_factor(A, index[1 + N:1 + N + n_c])
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _unit(u, q, L, fixed, frozen, branch):
+    """Whether unknown u of a star has an identity row (factor_jacobian)."""
+    if u < q:
+        return fixed[u]
+    l = (u - q) % L
+    moves = branch[l, B_SLIP] > 0 if u >= q + L else branch[l, B_CONTACT] > 0  # tangential, normal
+    return frozen[l] or not (moves or branch[l, B_STICK] > 0)
 
 
 @njit(cache=True, error_model="numpy")

@@ -149,18 +149,34 @@ def lu_solve(LU, piv, b):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_star(store, index, R, work, nonzero):
+def solve_star(d, store, index, R, work, nonzero):
     """Solve J y = R in place (R (N,)) from factor_jacobian's store and index (jacobian.factor_jacobian); work (>= N,),
-    nonzero (>= N, int) workspaces."""
+    nonzero (>= N, int) workspaces. A condensed link's reactions r (jacobian._condense) leave
+    the copies' residuals R_x - G R_r before the coupled solve and come back after it, as
+    K_rr^-1 R_r - H y_x."""
     N = len(R)
     n_c = index[0]
     order = index[1:1 + N]
+    n_u = N - n_c
+    while n_u > 0 and order[n_c + n_u - 1] < 0:  # the condensed unknowns, marked, at the end
+        n_u -= 1
     A = store[:n_c * n_c].reshape((n_c, n_c))
-    C = store[n_c * n_c:n_c * N].reshape((n_c, N - n_c))
+    C = store[n_c * n_c:n_c * (n_c + n_u)].reshape((n_c, n_u))
+    condensed = store[n_c * (n_c + n_u):]
+    copies = index[1 + N + n_c:]
+    first, size = n_c + n_u, 4 * d * d + d
+    for k in range((N - first) // d):
+        G = condensed[k * size + d:k * size + d + 2 * d * d]
+        for c in range(2 * d):
+            u = copies[2 * k + c // d] * d + c % d
+            s = R[u]
+            for i in range(d):
+                s -= G[c * d + i] * R[-1 - order[first + d * k + i]]
+            R[u] = s
     # the unit unknowns' residuals are mostly zero (an open link's normal row without
     # shift, a frictionless tangential row): their columns are skipped, in the same order
     n_nz = 0
-    for k in range(N - n_c):
+    for k in range(n_u):
         if R[order[n_c + k]] != 0.0:
             nonzero[n_nz] = k
             n_nz += 1
@@ -173,16 +189,25 @@ def solve_star(store, index, R, work, nonzero):
     lu_solve(A, index[1 + N:1 + N + n_c], work[:n_c])
     for a in range(n_c):
         R[order[a]] = work[a]
+    for k in range((N - first) // d):
+        inverse = condensed[k * size:k * size + d]
+        H = condensed[k * size + d + 2 * d * d:(k + 1) * size]
+        for i in range(d):
+            u = -1 - order[first + d * k + i]
+            s = inverse[i] * R[u]
+            for c in range(2 * d):
+                s -= H[i * 2 * d + c] * R[copies[2 * k + c // d] * d + c % d]
+            R[u] = s
 
 
 @njit(cache=True, error_model="numpy")
-def woodbury_factor(store, index, U, V, Z, cap, cap_piv, work, nonzero):
+def woodbury_factor(d, store, index, U, V, Z, cap, cap_piv, work, nonzero):
     """Z = J^-1 U^T (rows, from the stored factors) and the LU of the capacitance
     I + V Z^T, for woodbury_solve; U, V, Z (n_u, N), cap (>= n_u^2)."""
     n_u = U.shape[0]
     for i in range(n_u):
         Z[i] = U[i]
-        solve_star(store, index, Z[i], work, nonzero)
+        solve_star(d, store, index, Z[i], work, nonzero)
     C = cap[:n_u * n_u].reshape((n_u, n_u))
     for i in range(n_u):
         for j in range(n_u):
@@ -194,11 +219,11 @@ def woodbury_factor(store, index, U, V, Z, cap, cap_piv, work, nonzero):
 
 
 @njit(cache=True, error_model="numpy")
-def woodbury_solve(store, index, V, Z, cap, cap_piv, R, t, work, nonzero):
+def woodbury_solve(d, store, index, V, Z, cap, cap_piv, R, t, work, nonzero):
     """Solve (J + U^T V) y = R in place, J from the stored factors, Z and the capacitance
     from woodbury_factor; t (>= n_u,) workspace."""
     n_u = V.shape[0]
-    solve_star(store, index, R, work, nonzero)
+    solve_star(d, store, index, R, work, nonzero)
     for i in range(n_u):
         s = 0.0
         for m in range(len(R)):

@@ -139,7 +139,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
         predicted = cached[s] != NONE and options.predict and not imposed  # imposed motion: not cached
         if predicted:
             affine_constant(d, star, codes[l0:l1], slip_dir[l0:l1], delta)
-            solve_star(store, index, delta[:N], work, nonzero)
+            solve_star(d, store, index, delta[:N], work, nonzero)
             for i in range(q):
                 xs[i] = -delta[i]
             for l in range(L):
@@ -271,10 +271,10 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
                 n_built = -1
             delta[:N] = R[:N]
             if n_f > 0:
-                woodbury_solve(store, index, nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, delta[:N], nw.t,
+                woodbury_solve(d, store, index, nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, delta[:N], nw.t,
                                nw.work, nw.nonzero)
             else:
-                solve_star(store, index, delta[:N], work, nonzero)
+                solve_star(d, store, index, delta[:N], work, nonzero)
             if options.cycle < k < options.fallback:
                 direction[:N] = -delta[:N]
             for i in range(q):
@@ -367,7 +367,7 @@ def _keep_newton_factors(d, s, star, l0, held, nw, cache):
         n_c = held_index[0]
         for i in range(n_c * N):
             store[i] = held_store[i]
-        for i in range(1 + N + n_c):
+        for i in range(2 * N + 1):  # the condensed links' copies too, after the pivots
             index[i] = held_index[i]
         for l in range(L):
             codes[l0 + l] = held_code[l]
@@ -415,6 +415,6 @@ def _woodbury_update(d, star, N, n_f, scode, code, store, index, nw, regularisat
         l = flipped[i]
         n_u += flip_rows(d, star, l, scode[l], code[l], U[n_u:n_u + 2, :N], V[n_u:n_u + 2, :N], regularisation)
         built[i, 0], built[i, 1] = l, code[l]
-    woodbury_factor(store, index, nw.U[:n_u, :N], nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, nw.work,
+    woodbury_factor(d, store, index, nw.U[:n_u, :N], nw.V[:n_u, :N], nw.Z[:n_u, :N], nw.cap, nw.cap_piv, nw.work,
                     nw.nonzero)
     return n_u
