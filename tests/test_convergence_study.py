@@ -90,3 +90,20 @@ def test_a_run_killed_before_its_summary_is_resumed_not_overwritten(tmp_path):
     result = _study(tmp_path, "--end", "0.02")
     assert result.returncode == 2, result.stderr
     assert "0.0085" in result.stderr and folder.is_dir()
+
+
+def test_the_bunker_study_reads_its_long_wall(tmp_path):
+    """The bunker's deflection is its long wall's (summary.json: bunker.long_wall), and its
+    table has the 3D columns (median piece, hazard distance)."""
+    folder = tmp_path / "bunker" / "linear_softening-h0.2"
+    folder.mkdir(parents=True)
+    summary = {"status": "completed", "cells": 6248, "ranks": 2, "wall_time_s": 30.0,
+               "case": {"time": {"end": 0.02}}, "energies_J": {"D_damage_J": 5300.0, "D_contact_J": 2800.0},
+               "bunker": {"long_wall": {"peak_deflection_m": 0.0355}}, "debris": {"hazard_distance_m": 3.0}}
+    (folder / "summary.json").write_text(json.dumps(summary))
+    (folder / "links.csv").write_text("broken,break_time_s,weight,damage\n1,0.0066,0.02,1\n")
+    result = subprocess.run([sys.executable, str(SCRIPT), "bunker", "--sizes", "0.2", "--laws", "linear_softening",
+                             "--out", str(tmp_path), "--table-only"], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    row = next(line for line in result.stdout.splitlines() if line.startswith("| 0.2 |"))
+    assert "| 6.60 | 35.50 | 8100 |" in row and row.endswith("| 3.0 | 30 |")
