@@ -5,7 +5,7 @@ from numba import njit
 
 from dolfrag.solver.active_set import (CONTACT, NEGATIVE, PRESSED, SLIP, SPRING, STICK, normal_compliance,
                                       spring_normal_tangent, tangential_compliance)
-from dolfrag.solver.stars.lu import lu_factor
+from dolfrag.solver.stars.lu import lu_factor, record_size
 from dolfrag.solver.stars.records import APPROXIMATE, EXACT
 from dolfrag.solver.stars.residual import B_CONTACT, B_PRESSED, B_SCALE, B_SLIP, B_STICK, FROZEN
 
@@ -88,7 +88,7 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, K, first, at, regular
             u = a * d + c if c < d else (b * d + c - d if c < 2 * d else q + (c - 2 * d) * L + l)
             at[c] = -1 if u < q and fixed[u] else position[u]
         if at[2 * d] >= first:
-            _condense(d, block, at, n_c, A, K[(at[2 * d] - first) // d * _record_size(d):])
+            _condense(d, block, at, n_c, A, K[(at[2 * d] - first) // d * record_size(d):])
             continue
         for r in range(3 * d):
             i = at[r]
@@ -108,12 +108,6 @@ def _jacobian_into(d, star, code, ev, position, n_c, A, C, K, first, at, regular
     for i in range(q):
         if fixed[i] and position[i] < n_c:
             A[position[i], position[i]] += 1.0
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _record_size(d):
-    """The values a condensed link keeps (_condense): K_rr^-1 (d), G (2 d x d), H (d x 2 d)."""
-    return 4 * d * d + d
 
 
 @njit(cache=True, error_model="numpy")
@@ -176,14 +170,14 @@ def factor_jacobian(d, star, code, ev, elimination, store, index, position, regu
     unknowns only (an intact RCCM star in tension: its q momentum rows alone; a 2D star: LU of
     ~18 rows instead of 24 costs half). The reactions of a held link (_held_link: a closed,
     sticking joint) are eliminated link by link (_condense), which leaves the LU the copies and
-    the other links' reactions: on a cracking 3D star of ~180 unknowns about 80 instead of
-    ~170. The coupled unknowns are eliminated in the star's ``elimination`` order (N,:
+    the other links' reactions: on a cracking 3D bar, 63 coupled unknowns instead of 137 on
+    average (docs/method.md, "Held links condensed"). The coupled unknowns are eliminated in the star's ``elimination`` order (N,:
     unknown_order). Only their rows are formed, straight into store (>= N^2): the LU factors
     of the coupled block (n_c, n_c), its columns of the unit unknowns (n_c, n_u), then a record
-    per condensed link (_record_size); index (>= 2 N + 1): n_c, the coupled unknowns, the unit
+    per condensed link (lu.record_size); index (>= 2 N + 1): n_c, the coupled unknowns, the unit
     ones, the condensed ones (as -1 - u, a link's d reactions together), the pivots, then each
     condensed link's two copies. Links are condensed only where the coupled block keeps at
-    least _record_size(d) / d rows, so that everything lies in the first n_c N values of
+    least lu.record_size(d) / d rows, so that everything lies in the first n_c N values of
     store. position (>= N + 3 d, int) workspace; ev (residual.Evaluation) gives the branches
     and e of the point, and its scratch. (Formed whole and then copied, a 3D star's Jacobian
     cost more than its LU: measured on the damaged 3D bar, 5 + 13 ms of a 101 ms kernel call,
@@ -198,7 +192,7 @@ def factor_jacobian(d, star, code, ev, elimination, store, index, position, regu
     for u in range(N):
         if not _unit(u, q, L, fixed, frozen, branch):
             n_coupled += 1
-    if n_coupled - d * n_held < _record_size(d) // d:
+    if n_coupled - d * n_held < record_size(d) // d:
         n_held = 0
     first = N - d * n_held
     n_c, n_t = 0, first
@@ -225,7 +219,7 @@ def factor_jacobian(d, star, code, ev, elimination, store, index, position, regu
             copies[2 * k], copies[2 * k + 1] = star.slot_A[l], star.slot_B[l]
             k += 1
     n_u = first - n_c
-    end = n_c * (n_c + n_u) + n_held * _record_size(d)
+    end = n_c * (n_c + n_u) + n_held * record_size(d)
     store[:n_c * N] = 0.0  # all its solves read (and a checkpoint keeps), the same each time
     A = store[:n_c * n_c].reshape((n_c, n_c))
     C = store[n_c * n_c:n_c * (n_c + n_u)].reshape((n_c, n_u))

@@ -148,6 +148,12 @@ def lu_solve(LU, piv, b):
         b[i] = s / LU[i, i]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def record_size(d):
+    """The values a condensed link keeps (jacobian._condense): K_rr^-1 (d), G (2 d x d), H (d x 2 d)."""
+    return 4 * d * d + d
+
+
 @njit(cache=True, error_model="numpy")
 def solve_star(d, store, index, R, work, nonzero):
     """Solve J y = R in place (R (N,)) from factor_jacobian's store and index (jacobian.factor_jacobian); work (>= N,),
@@ -164,7 +170,7 @@ def solve_star(d, store, index, R, work, nonzero):
     C = store[n_c * n_c:n_c * (n_c + n_u)].reshape((n_c, n_u))
     condensed = store[n_c * (n_c + n_u):]
     copies = index[1 + N + n_c:]
-    first, size = n_c + n_u, 4 * d * d + d
+    first, size = n_c + n_u, record_size(d)
     for k in range((N - first) // d):
         G = condensed[k * size + d:k * size + d + 2 * d * d]
         for c in range(2 * d):
