@@ -78,3 +78,32 @@ def test_a_held_joints_elastic_work_is_stored_and_the_rest_split_as_for_a_rigid_
     # of those sums only (terms of one sign, a handful of ulps), as in the first test above
     assert dissipated == pytest.approx(0.5 * np.sum(mu * pressed * slip), rel=1e-12)
     assert absorbed == pytest.approx(0.5 * (cohesion_T * slip - np.sum(r * elastic, axis=1)), rel=1e-12)
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_a_jump_that_is_all_the_joints_elastic_part_is_no_opening_of_the_law(gdim):
+    """active_set.joint_jumps: where a rigid cohesive link's jumps are its joint's elastic jump
+    -c r (c = COMPLIANCE / rho) at both ends of the step, the law's opening is zero and the
+    step's increment is all the joint's; on a broken (shift 0) or frozen link there is no
+    joint, so the opening is the mid jump and the joint's increment is zero."""
+    from dolfrag.solver.active_set import COMPLIANCE, joint_jumps
+    rng = np.random.default_rng(7)
+    n = 9
+    rho = rng.uniform(1e12, 1e14, n)
+    shift = np.where(np.arange(n) % 3 == 0, 0.0, rng.uniform(1e6, 3e6, n))  # every third link broken
+    frozen = np.arange(n) % 4 == 1
+    r_n, r = rng.normal(0.0, 1e6, (n, gdim)), rng.normal(0.0, 1e6, (n, gdim))
+    c = COMPLIANCE / rho[:, None]
+    g_n = -c * r_n
+    slip = -c * (r - r_n)  # g_{n+1} = -c r
+    g_mid, opening, joint = (np.empty((n, gdim)) for _ in range(3))
+    joint_jumps(g_n, slip, r_n, r, shift, rho, frozen, g_mid, opening, joint)
+    np.testing.assert_array_equal(g_mid, g_n + 0.5 * slip)
+    held = (shift > 0) & ~frozen
+    assert held.sum() >= 3 and (~held).sum() >= 3
+    # round-off of the cancelling products only: terms of size c |r|
+    scale = np.abs(c * np.maximum(np.abs(r), np.abs(r_n))).max()
+    np.testing.assert_allclose(opening[held], 0.0, atol=1e-14 * scale)
+    np.testing.assert_allclose(joint[held], slip[held], rtol=1e-14)
+    np.testing.assert_array_equal(opening[~held], g_mid[~held])
+    np.testing.assert_array_equal(joint[~held], 0.0)
