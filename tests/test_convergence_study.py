@@ -93,8 +93,8 @@ def test_a_run_killed_before_its_summary_is_resumed_not_overwritten(tmp_path):
 
 
 def test_the_bunker_study_reads_its_long_wall(tmp_path):
-    """The bunker's deflection is its long wall's (summary.json: bunker.long_wall), and its
-    table has the 3D columns (median piece, hazard distance)."""
+    """The bunker's deflection is its long wall's (summary.json: bunker.long_wall; history.csv:
+    w_long_wall_m), and its table has the 3D columns (median piece, hazard distance)."""
     folder = tmp_path / "bunker" / "linear_softening-h0.2"
     folder.mkdir(parents=True)
     summary = {"status": "completed", "cells": 6248, "ranks": 2, "wall_time_s": 30.0,
@@ -102,8 +102,14 @@ def test_the_bunker_study_reads_its_long_wall(tmp_path):
                "bunker": {"long_wall": {"peak_deflection_m": 0.0355}}, "debris": {"hazard_distance_m": 3.0}}
     (folder / "summary.json").write_text(json.dumps(summary))
     (folder / "links.csv").write_text("broken,break_time_s,weight,damage\n1,0.0066,0.02,1\n")
+    # its history gives the long wall's deflection, not a midspan's
+    (folder / "history.csv").write_text("time_s,w_long_wall_m,D_damage_J,D_contact_J,broken_links\n"
+                                        "0.01,-0.0057,4000,100,9000\n0.02,-0.0355,5300,2800,30000\n")
     result = subprocess.run([sys.executable, str(SCRIPT), "bunker", "--sizes", "0.2", "--laws", "linear_softening",
-                             "--out", str(tmp_path), "--table-only"], capture_output=True, text=True, timeout=60)
+                             "--out", str(tmp_path), "--table-only", "--at", "0.01"],
+                            capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     row = next(line for line in result.stdout.splitlines() if line.startswith("| 0.2 |"))
     assert "| 6.60 | 35.50 | 8100 |" in row and row.endswith("| 3.0 | 30 |")
+    at = [line for line in result.stdout.splitlines() if line.startswith("| 0.2 |")][-1]
+    assert at == "| 0.2 | 5.700, 4100, 9,000 |"

@@ -180,17 +180,23 @@ def verdict(rows):
     return f"h = {h1:g} against {h2:g} m: " + "; ".join(parts)
 
 
+# the deflection each case's history.csv gives (m): a wall's or panel's midspan, the bunker's long wall
+DEFLECTION_COLUMNS = ("w_midspan_m", "w_long_wall_m")
+
+
 def history_at(folder, times):
-    """Rows of the run's history.csv nearest to each time (s): midspan deflection (m),
-    D_damage + D_contact (J), broken links; None for a time the run has not reached (past its
-    last row by more than the rows' spacing: a run stopped, or still going)."""
+    """Rows of the run's history.csv nearest to each time (s): deflection (m, the column of
+    DEFLECTION_COLUMNS it has), D_damage + D_contact (J), broken links; None for a time the
+    run has not reached (past its last row by more than the rows' spacing: a run stopped, or
+    still going)."""
     rows = _csv(folder / "history.csv")
+    column = next((c for c in DEFLECTION_COLUMNS if rows and c in rows[0]), DEFLECTION_COLUMNS[0])
     t = np.array([float(row["time_s"]) for row in rows])
     spacing = np.max(np.diff(t)) if len(t) > 1 else 0.0
     reached = t[-1] + spacing if len(t) else -np.inf  # a run just started has a header only
     picked = [rows[int(np.argmin(np.abs(t - time)))] if time <= reached else None for time in times]
     return [None if row is None else
-            (float(row["time_s"]), abs(float(row["w_midspan_m"])),
+            (float(row["time_s"]), abs(float(row[column])),
              float(row["D_damage_J"]) + float(row["D_contact_J"]), int(row["broken_links"])) for row in picked]
 
 
