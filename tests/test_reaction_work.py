@@ -101,9 +101,11 @@ def test_a_jump_that_is_all_the_joints_elastic_part_is_no_opening_of_the_law(gdi
     np.testing.assert_array_equal(g_mid, g_n + 0.5 * slip)
     held = (shift > 0) & ~frozen
     assert held.sum() >= 3 and (~held).sum() >= 3
-    # round-off of the cancelling products only: terms of size c |r|
+    # round-off of the cancelling products only: terms of size c |r|, a few ulps of them (1e-14: ~50)
     scale = np.abs(c * np.maximum(np.abs(r), np.abs(r_n))).max()
     np.testing.assert_allclose(opening[held], 0.0, atol=1e-14 * scale)
+    # the same product -c (r - r_n) as slip above, its c formed as COMPLIANCE / rho inside the
+    # kernel: equal to an ulp or two
     np.testing.assert_allclose(joint[held], slip[held], rtol=1e-14)
     np.testing.assert_array_equal(opening[~held], g_mid[~held])
     np.testing.assert_array_equal(joint[~held], 0.0)
