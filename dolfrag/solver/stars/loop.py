@@ -49,9 +49,7 @@ def _gather_jumps(d, comps, comp_off, link_off, slot_A, slot_B, frame, u, v, h, 
     """gather_stars' jumps g_n and dg, in d dimensions (d a compile-time constant), each
     star's copies of u and v read once into u_s, v_s: 0.86 ms of CPU a call on the 31,632
     links of bunker-h2 at 0.2 m, against 1.09 ms reading them per link with d a variable."""
-    q_max = 0
-    for s in range(len(comp_off) - 1):
-        q_max = max(q_max, comp_off[s + 1] - comp_off[s])
+    q_max, _ = _largest(comp_off, link_off, np.arange(len(comp_off) - 1))
     u_s, v_s = np.empty(q_max), np.empty(q_max)
     for s in range(len(comp_off) - 1):
         p0 = comp_off[s]
