@@ -15,7 +15,9 @@ from dolfrag.runner.driver import integrator
 from dolfrag.solver import star_kernel
 from dolfrag.solver.active_set import COMPLIANCE
 from dolfrag.solver.star_kernel import DEFAULT, Cache, StepData
-from dolfrag.solver.stars.rigid import HELD
+from dolfrag.solver.stars.records import star_at
+from dolfrag.solver.stars.residual import evaluate, evaluation
+from dolfrag.solver.stars.rigid import HELD, held_motion, held_residual
 
 # The full solve stops within rtol of the star's scale: its motion is the rigid path's to a
 # few rtol of its largest value (the momentum rows scaled by m, through a Jacobian of
@@ -126,6 +128,63 @@ def test_a_star_pulled_past_a_links_strength_leaves_the_rigid_path_for_newton(d)
     assert opened > 10
 
 
+def _held_residual_and_evaluate(geometry, data, s):
+    """Star s of the records held (rigid.held_motion), and there the held pass's residual
+    (rigid.held_residual, with the outputs it writes) and residual.evaluate's: (scaled,
+    out, evaluate's scaled parts, its Evaluation)."""
+    d = geometry.frame.shape[1]
+    p0, p1, l0, l1 = geometry.comp_off[s], geometry.comp_off[s + 1], geometry.link_off[s], geometry.link_off[s + 1]
+    out = star_kernel.empty_outputs(len(geometry.comp_off) - 1, len(geometry.mass), len(geometry.slot_A), d)
+    q = p1 - p0
+    held_motion(d, geometry, data, p0, p1, l0, l1, geometry.rigid[geometry.rigid_off[s]:geometry.rigid_off[s + 1]],
+                np.empty(q), out.x, out.r)
+    scaled = held_residual(d, geometry, data, p0, p1, l0, l1, np.empty(q), out)
+    ev = evaluation(d, q, l1 - l0)
+    parts = evaluate(d, star_at(geometry, data, s), out.x[p0:p1].copy(), out.r[l0:l1].copy(), data.floor_m,
+                     data.floor_c, ev)
+    return scaled, out, parts, ev
+
+
+def _assert_held_residual_is_evaluates(geometry, data, s):
+    """held_residual is evaluate on the held piece, term for term: where every link of star
+    s reads closed and sticking at its held motion, the same scaled residual, springs' jumps,
+    slips and reactions of prescribed components, bit for bit; elsewhere inf (Newton's).
+    Returns whether the star read the held piece."""
+    scaled, out, parts, ev = _held_residual_and_evaluate(geometry, data, s)
+    p0, p1, l0, l1 = geometry.comp_off[s], geometry.comp_off[s + 1], geometry.link_off[s], geometry.link_off[s + 1]
+    L = l1 - l0
+    if not (ev.code[:L] == HELD).all():
+        assert scaled == np.inf
+        return False
+    assert scaled == max(parts)
+    assert np.array_equal(out.gbar[l0:l1], ev.gbar[:L]) and np.array_equal(out.slip[l0:l1], ev.slip[:L])
+    assert np.array_equal(out.reaction[p0:p1], ev.reaction[:p1 - p0])
+    return True
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_held_pass_reads_the_residual_newton_reads(d):
+    """On random held stars, strong or with a link near no strength, and with or without
+    springs (a held link of linear softening has none, but the residual counts them), the
+    held pass's residual at the held motion is evaluate's where the star reads the held
+    piece and inf where it does not: it accepts exactly the stars Newton would accept at
+    that iterate and piece."""
+    rng = np.random.default_rng(11)
+    read = refused = 0
+    for k in range(80):
+        star = _rigid_star(rng, d, fixed=(0,) if k % 3 == 0 else ())
+        if k % 2:
+            star["shift"][0] = star["cohesion_T"][0] = 1e-9
+        if k % 4 >= 2:
+            star["k_N"], star["k_T"] = rng.uniform(0, 1, star["L"]), rng.uniform(0, 1, star["L"])
+        geometry, data, _ = _records(star)
+        if _assert_held_residual_is_evaluates(geometry, data, 0):
+            read += 1
+        else:
+            refused += 1
+    assert read > 20 and refused > 20
+
+
 def _recorded_calls(monkeypatch, dim, steps):
     """The kernel's inputs at each step of a sound bar of linear softening under its pulse,
     weak enough (0.4 MPa) to crack as the pulse reflects in tension: (geometry, data)."""
@@ -152,7 +211,8 @@ def test_recorded_steps_of_a_cracking_bar_solve_alike_with_and_without_the_rigid
     """Every star of recorded steps held rigid first. Where the rigid path takes it, Newton
     predicted from the factors of that piece (what the star would have stored) gets the same
     motion, and the same reactions up to what the joints make of the star's residual;
-    where the path refuses it, the star is Newton's from zero, bit for bit.
+    where the path refuses it, the star is Newton's from zero, bit for bit; and the held
+    pass's residual is evaluate's (_assert_held_residual_is_evaluates).
 
     A star is solved to rtol of its scales, or of the step's where its own are tiny (the
     floors of semismooth.FLOOR): its values agree to a few rtol of the step's largest. The
@@ -162,7 +222,7 @@ def test_recorded_steps_of_a_cracking_bar_solve_alike_with_and_without_the_rigid
     step's largest reaction; the bound is 10 e / eps (see ring)."""
     calls, integ = _recorded_calls(monkeypatch, dim, 180)
     assert (integ.model.damage() > 0).sum() > 10  # the bar cracks: refused stars are among them
-    taken = refused = 0
+    taken = refused = read = 0
     for geometry, data in calls[30::30]:
         d = geometry.frame.shape[1]
         empty = list(star_kernel.empty_cache(geometry.comp_off, geometry.link_off, d))
@@ -191,7 +251,10 @@ def test_recorded_steps_of_a_cracking_bar_solve_alike_with_and_without_the_rigid
             bound = max(AGREE, 10 * max(newton.residual[s], rigid.residual[s]) / COMPLIANCE)
             assert np.abs(rigid.r[l] - newton.r[l]).max() <= bound * largest_r, s
         taken, refused = taken + took.sum(), refused + (~took).sum()
-    assert taken > 0 and refused > 0
+        # and the held pass's residual is evaluate's there (every fifth star that qualifies)
+        for s in np.flatnonzero(np.diff(geometry.rigid_off) > 0)[::5]:
+            read += _assert_held_residual_is_evaluates(geometry, data, s)
+    assert taken > 0 and refused > 0 and read > 0
 
 
 def test_a_run_holds_its_intact_stars_rigid():

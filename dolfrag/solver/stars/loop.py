@@ -12,7 +12,7 @@ from dolfrag.solver.stars.newton import newton_space, solve_each
 from dolfrag.solver.stars.options import DEFAULT
 from dolfrag.solver.stars.ordering import unknown_orders
 from dolfrag.solver.stars.records import NONE, RIGID, Geometry, StepData, empty_cache, empty_outputs, star_at
-from dolfrag.solver.stars.rigid import held_piece, rigid_inverses
+from dolfrag.solver.stars.rigid import held_piece, held_stars, rigid_inverses
 from dolfrag.solver.stars.residual import evaluation, evaluate
 
 
@@ -125,7 +125,11 @@ def _solve_stars(d, geometry, data, cache, out, options, todo, abort):
     # workspaces, once per call
     ev, sw = evaluation(d, q_max, L_max), sweep_space(d, q_max, L_max)
     nw = newton_space(d, q_max, L_max, options.flips)
-    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, np.empty(q_max), todo, abort)
+    newton = todo
+    if options.rigid and not abort[0]:  # the held stars first; Newton for the others (newton = todo less those solved)
+        newton = np.empty_like(todo)
+        held_stars(d, geometry, data, cache, out, options.rtol, todo, newton, np.empty(q_max), np.empty(q_max))
+    solve_each(d, geometry, data, cache, out, options, ev, sw, nw, newton, abort)
 
 
 @njit(cache=True, error_model="numpy")

@@ -17,7 +17,7 @@ from dolfrag.solver.stars.options import sweep_tolerance
 from dolfrag.solver.stars.records import (APPROXIMATE, CONVERGED, EXACT, ITERATIONS, N_FIRST, N_STALLED,
                                           N_UNCONVERGED, NONE, RIGID, STALE, STALLED, UNCONVERGED, star_at)
 from dolfrag.solver.stars.residual import B_SCALE, evaluate
-from dolfrag.solver.stars.rigid import held_piece, rigid_solve
+from dolfrag.solver.stars.rigid import held_piece
 
 # Newton's workspaces, sized for the largest star of a call (q_max components, L_max links,
 # N_max unknowns): the iterate (x, r); the piece and data the star started from (code_in,
@@ -49,17 +49,16 @@ def newton_space(d, q_max, L_max, flips):
 
 
 @njit(cache=True, error_model="numpy")
-def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abort):
+def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, todo, abort):
     """Solve each star s where todo[s] (records: Geometry, StepData, Cache, Outputs;
     StarOptions) and write its outputs and what its stored factors are now
-    (solvers.loop.solve_stars says what each means). ev, sw, nw, rw: the workspaces of
-    evaluate, gauss_seidel, Newton and the rigid path (Evaluation, SweepSpace, NewtonSpace,
-    an array of q_max). Returns unfinished where ``abort`` gets set.
+    (solvers.loop.solve_stars says what each means). ev, sw, nw: the workspaces of
+    evaluate, gauss_seidel and Newton (Evaluation, SweepSpace, NewtonSpace). Returns
+    unfinished where ``abort`` gets set.
 
-    A star whose stored piece is closed and sticking on every link, every one cohesive
-    (rigid.held_piece), and that qualifies (rigid.rigid_inverses), is first held (rigid.rigid_solve): solved there if its
-    residual is within rtol, at iteration 1, its factors left as they were; else Newton
-    solves it, from zero if it had no factors (RIGID).
+    The stars the held path solved (rigid.held_stars, before this loop) are not in todo; a
+    star it refused, or that reaches Newton with the path off, starts from zero if it had
+    no factors (RIGID).
 
     The loop over the stars is here, with the record fields it reads taken into locals
     once: numba increfs every array of every record passed to a compiled function on entry
@@ -70,7 +69,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
     (benchmarks/step_cost.py --law rccm, see the commit). Per star only star_at and the
     per-iteration kernels are called, whose entry refcounts the pruning removes or few."""
     comp_off, link_off, elimination = geometry.comp_off, geometry.link_off, geometry.elimination
-    rigid_off, rigid = geometry.rigid_off, geometry.rigid
+    rigid_off = geometry.rigid_off
     factors, blocks, block_at, pivots, piv_off = cache.factors, cache.blocks, cache.blocks.at, cache.pivots, \
         cache.piv_off
     codes, cached, factored, slip_dir = cache.codes, cache.cached, cache.factored, cache.slip_dir
@@ -100,15 +99,7 @@ def solve_each(d, geometry, data, cache, out, options, ev, sw, nw, rw, todo, abo
         l1 = l0 + L
         xs, rs = x_nw[:q], r_nw[:L]
         r0, r1 = rigid_off[s], rigid_off[s + 1]
-        if options.rigid and cached[s] != NONE and r1 > r0 and held_piece(codes[l0:l1], star.shift):
-            scaled_m, scaled_c = rigid_solve(d, star, rigid[r0:r1], rw, xs, rs, data.floor_m, data.floor_c, ev)
-            if max(scaled_m, scaled_c) <= options.rtol:
-                counters[N_FIRST] += 1
-                counters[ITERATIONS] = max(counters[ITERATIONS], 1)
-                status[s], residual[s] = CONVERGED, max(scaled_m, scaled_c)
-                _write(d, p0, l0, q, L, xs, rs, reaction, gbar, slip, x_out, reaction_out, r_out, gbar_out, slip_out)
-                continue
-        if cached[s] == RIGID:  # no factors to predict with
+        if cached[s] == RIGID:  # no factors to predict with (the held path refused it, or is off)
             cached[s] = NONE
         # a star without a block (it kept no factors: blocks.py) forms Newton's in a workspace,
         # and takes one only if it keeps them

@@ -41,7 +41,7 @@ def frame_jump(d, frame, l, i, v, a, b):
 
 
 @njit(cache=True, error_model="numpy")
-def _ratio(a, scale):
+def scaled_ratio(a, scale):
     """a / scale, 0 where both vanish (a star at rest), inf where only the scale does."""
     if scale > 0:
         return a / scale
@@ -149,5 +149,5 @@ def evaluate(d, star, x, r, floor_m, floor_c, ev):
     if probe != probe:  # an iterate gone NaN is never read as converged
         return np.inf, np.inf
     scale_c = max_r + max_terms
-    return _ratio(max_m, max(scale_m, floor_m)), _ratio(max_phi, max(scale_c, floor_c))
+    return scaled_ratio(max_m, max(scale_m, floor_m)), scaled_ratio(max_phi, max(scale_c, floor_c))
 

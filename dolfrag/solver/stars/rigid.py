@@ -32,7 +32,8 @@ import numpy as np
 from numba import njit
 
 from dolfrag.solver.active_set import COMPLIANCE, CONTACT, STICK
-from dolfrag.solver.stars.residual import evaluate, frame_jump
+from dolfrag.solver.stars.records import CONVERGED, ITERATIONS, N_FIRST, NONE, RIGID
+from dolfrag.solver.stars.residual import frame_jump, scaled_ratio
 
 # The piece of a link that is closed and sticking (active_set.link_code).
 HELD = CONTACT | STICK
@@ -93,40 +94,56 @@ def _block(n, slot_A, slot_B, k, m, fixed, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _laplace(d, n, Q, v, out):
-    """out = Q[j] v on each direction j of the copies (v, out (n d,), copy-major; Q (1 or d,
-    n, n): one block shared by the directions, or one each)."""
-    if len(Q) == 1:  # every direction in one pass over the block
-        for i in range(n):
-            for j in range(d):
-                out[i * d + j] = 0.0
-            for k in range(n):
-                Q_ik = Q[0, i, k]
-                for j in range(d):
-                    out[i * d + j] += Q_ik * v[k * d + j]
-        return
-    for j in range(d):
-        for i in range(n):
-            s = 0.0
-            for k in range(n):
-                s += Q[j, i, k] * v[k * d + j]
-            out[i * d + j] = s
+def held_stars(d, geometry, data, cache, out, rtol, todo, rest, z, force):
+    """The held path over a rank's stars, before Newton (newton.solve_each): each star s of
+    ``todo`` whose stored piece is held on every link (held_piece; cache.cached not NONE)
+    and that qualifies (rigid_inverses) gets its motion and reactions there (held_motion)
+    and is solved if it reads the held piece there with its residual within ``rtol``
+    (held_residual): its outputs, status and counters are then written as Newton's would be
+    for a star solved at iteration 1. rest[s]: whether s of ``todo`` still takes Newton;
+    a refused star stored no factors if it was RIGID (cached NONE: Newton starts from zero).
+    z, force (>= the largest star's components): workspaces. Records as
+    loop.solve_stars.
+
+    The stars are read through the flat arrays and their offsets, not through a Star per
+    star (records.star_at): numba increfs and decrefs every array of such a record it
+    slices and passes on, ~0.26 us a star to build one and ~0.4 us more to pass it to a
+    function (measured on 4,863 held 2D stars of the damaged bar of
+    benchmarks/step_cost.py, where the held path cost 1.33 us a star)."""
+    comp_off, link_off, rigid_off, rigid = geometry.comp_off, geometry.link_off, geometry.rigid_off, geometry.rigid
+    codes, cached, shift = cache.codes, cache.cached, data.shift
+    status, residual, counters = out.status, out.residual, out.counters
+    for s in range(len(comp_off) - 1):
+        rest[s] = todo[s]
+        r0, r1, l0, l1 = rigid_off[s], rigid_off[s + 1], link_off[s], link_off[s + 1]
+        if not todo[s] or r1 == r0 or cached[s] == NONE or not held_piece(codes[l0:l1], shift[l0:l1]):
+            continue
+        p0, p1 = comp_off[s], comp_off[s + 1]
+        held_motion(d, geometry, data, p0, p1, l0, l1, rigid[r0:r1], z, out.x, out.r)
+        scaled = held_residual(d, geometry, data, p0, p1, l0, l1, force, out)
+        if scaled <= rtol:
+            rest[s] = False
+            status[s], residual[s] = CONVERGED, scaled
+            counters[N_FIRST] += 1
+            counters[ITERATIONS] = max(counters[ITERATIONS], 1)
+        elif cached[s] == RIGID:  # no factors to predict with
+            cached[s] = NONE
 
 
-@njit(cache=True, error_model="numpy")
-def rigid_solve(d, star, inverse, z, x, r, floor_m, floor_c, ev):
-    """The motion x (q,) and reactions r (L, d) of ``star`` (records.Star) held, from its
-    stored ``inverse`` (rigid_inverses' slice), into x and r; returns the scaled residuals
-    (momentum, contact) there, as residual.evaluate (which leaves in ev what it leaves at
-    any iterate). z (>= q,): a workspace for the right-hand side."""
-    q, L, h = star.q, star.L, star.h
+@njit(cache=True, error_model="numpy", inline="always")
+def held_motion(d, geometry, data, p0, p1, l0, l1, inverse, z, x, r):
+    """The motion x[p0:p1] and reactions r[l0:l1] (link frame) of the star of components
+    [p0, p1) and links [l0, l1) held, from its stored ``inverse`` (rigid_inverses' slice);
+    z: a workspace for the right-hand side."""
+    slot_A, slot_B, frame, w, rho, fixed = geometry.slot_A, geometry.slot_B, geometry.frame, geometry.weight, \
+        geometry.rho, geometry.fixed
+    rhs, x_in, g_n, dg, r_n, h = data.rhs, data.x_in, data.g_n, data.dg, data.r_n, data.h
+    q, first = p1 - p0, p0 // d  # the star's components, and its first copy
     n = q // d
-    slot_A, slot_B, frame, w, rho, rhs = star.slot_A, star.slot_B, star.frame, star.w, star.rho, star.rhs
-    g_n, dg, r_n, fixed, x_in = star.g_n, star.dg, star.r_n, star.fixed, star.x_in
     kappa = h * h / COMPLIANCE
-    z = z[:q]
-    z[:] = rhs
-    for l in range(L):  # h B^T W (r0 - P tau / eps), and the couplings to prescribed copies
+    for c in range(q):
+        z[c] = rhs[p0 + c]
+    for l in range(l0, l1):  # h B^T W (r0 - P tau / eps), and the couplings to prescribed copies
         a, b, k = slot_A[l], slot_B[l], kappa * w[l] * rho[l]
         stiff = rho[l] / COMPLIANCE
         for j in range(d):
@@ -134,18 +151,83 @@ def rigid_solve(d, star, inverse, z, x, r, floor_m, floor_c, ev):
             for i in range(1, d):
                 F += frame[l, i, j] * (r_n[l, i] - stiff * dg[l, i])
             A, B = a * d + j, b * d + j
-            z[B] += h * w[l] * F + (k * x_in[A] if fixed[A] else 0.0)
-            z[A] += -h * w[l] * F + (k * x_in[B] if fixed[B] else 0.0)
-    _laplace(d, n, inverse.reshape((-1, n, n)), z, x)
-    for c in range(q):
-        if fixed[c]:
-            x[c] = x_in[c]
-    for l in range(L):
-        a, b, stiff = slot_A[l], slot_B[l], rho[l] / COMPLIANCE
+            z[B] += h * w[l] * F + (k * x_in[p0 + A] if fixed[p0 + A] else 0.0)
+            z[A] += -h * w[l] * F + (k * x_in[p0 + B] if fixed[p0 + B] else 0.0)
+    shared = len(inverse) == n * n  # one block for every direction, else one each
+    for j in range(d):
+        at = 0 if shared else j * n * n
+        for i in range(n):
+            s = 0.0
+            for k in range(n):
+                s += inverse[at + i * n + k] * z[k * d + j]
+            x[p0 + i * d + j] = x_in[p0 + i * d + j] if fixed[p0 + i * d + j] else s
+    for l in range(l0, l1):
+        a, b, stiff = first + slot_A[l], first + slot_B[l], rho[l] / COMPLIANCE
         r[l, 0] = -stiff * (g_n[l, 0] + dg[l, 0] + h * frame_jump(d, frame, l, 0, x, a, b))
         for i in range(1, d):
             r[l, i] = r_n[l, i] - stiff * (dg[l, i] + h * frame_jump(d, frame, l, i, x, a, b))
-    return evaluate(d, star, x, r, floor_m, floor_c, ev)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def held_residual(d, geometry, data, p0, p1, l0, l1, force, out):
+    """The scaled residual of the star of components [p0, p1) and links [l0, l1) at out.x,
+    out.r, the larger of its momentum and contact parts, as residual.evaluate's on the held
+    piece (the same terms in the same order); inf where a link does not read that piece
+    (open, or slipping) or where it is NaN. Writes the springs' jumps, the slips and the
+    prescribed components' reactions into out, as newton._write does; force: a workspace."""
+    slot_A, slot_B, frame, w, rho, m, fixed = geometry.slot_A, geometry.slot_B, geometry.frame, geometry.weight, \
+        geometry.rho, geometry.mass, geometry.fixed
+    rhs, g_n, dg, mu, shift, cohesion_T, k_N, k_T, r_n, h = data.rhs, data.g_n, data.dg, data.mu, data.shift, \
+        data.cohesion_T, data.k_N, data.k_T, data.r_n, data.h
+    x, r, gbar, slip, reaction = out.x, out.r, out.gbar, out.slip, out.reaction
+    q, first = p1 - p0, p0 // d
+    for i in range(q):
+        force[i] = 0.0
+    max_phi, max_r, max_terms, probe = 0.0, 0.0, 0.0, 0.0
+    for l in range(l0, l1):
+        a, b = first + slot_A[l], first + slot_B[l]
+        for i in range(d):
+            s = frame_jump(d, frame, l, i, x, a, b)
+            gbar[l, i] = g_n[l, i] + 0.25 * h * s
+            slip[l, i] = dg[l, i] + h * s
+            max_terms = max(max_terms, rho[l] * (abs(g_n[l, i]) + abs(dg[l, i]) + h * abs(s)))
+            max_r = max(max_r, abs(r[l, i]))
+        r_shift = r[l, 0] + shift[l]
+        y_N = r_shift - rho[l] * (g_n[l, 0] + slip[l, 0]) - COMPLIANCE * r[l, 0]
+        radius = mu[l] * (r_shift if r_shift > 0 else 0.0) + cohesion_T[l]
+        norm = 0.0
+        for i in range(1, d):
+            y_i = r[l, i] - rho[l] * slip[l, i] - COMPLIANCE * (r[l, i] - r_n[l, i])
+            norm += y_i * y_i
+        if not (y_N >= 0 and np.sqrt(norm) <= radius and radius > 0):  # not closed and sticking
+            return np.inf
+        phi = r_shift - y_N
+        max_phi = max(max_phi, abs(phi))
+        probe += phi
+        for i in range(1, d):
+            phi = rho[l] * slip[l, i] + COMPLIANCE * (r[l, i] - r_n[l, i])
+            max_phi = max(max_phi, abs(phi))
+            probe += phi
+        gbar[l, 0] = 0.75 * g_n[l, 0] - 0.25 * dg[l, 0]
+        t_N = w[l] * (k_N[l] * max(gbar[l, 0], 0.0) - r[l, 0])
+        for j in range(d):  # h B^T w (t(gbar) - r), the springs' t as evaluate reads them
+            F = frame[l, 0, j] * t_N
+            for i in range(1, d):
+                F += frame[l, i, j] * (w[l] * (k_T[l] * gbar[l, i] - r[l, i]))
+            force[(b - first) * d + j] += h * F
+            force[(a - first) * d + j] -= h * F
+    scale_m, max_m = 0.0, 0.0
+    for i in range(q):
+        mx = m[p0 + i] * x[p0 + i]
+        scale_m = max(scale_m, abs(rhs[p0 + i]), abs(mx), abs(force[i]))
+        R_i = mx - rhs[p0 + i] + force[i]
+        reaction[p0 + i] = R_i / h if fixed[p0 + i] else 0.0
+        R_i = 0.0 if fixed[p0 + i] else R_i
+        max_m = max(max_m, abs(R_i))
+        probe += R_i
+    if probe != probe:  # NaN: never read as converged
+        return np.inf
+    return max(scaled_ratio(max_m, max(scale_m, data.floor_m)), scaled_ratio(max_phi, max(max_r + max_terms, data.floor_c)))
 
 
 @njit(cache=True, error_model="numpy")
