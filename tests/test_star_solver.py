@@ -1,6 +1,7 @@
 """The step predicted on each star's last piece (solver/active_set.py) against Newton from
 zero (solver/stars/)."""
 import numpy as np
+import pytest
 from mpi4py import MPI
 
 from dolfrag.case import load_case
@@ -9,6 +10,7 @@ from dolfrag.runner.driver import integrator
 
 
 RCCM = ["interface.law=rccm", "interface.sigma_c=4e5", "interface.mu=0.3"]
+RCCM_DECOUPLED = ["interface.law=rccm_decoupled", "interface.sigma_c=4e5", "interface.G_c=0.05", "interface.mu=0.3"]
 # the structures' law, weak enough that the pulse cracks the bar within STEPS_TO_CRACK steps
 LINEAR_SOFTENING = ["interface.law=linear_softening", "interface.sigma_c=4e5", "interface.G_c=0.05",
                     "interface.mu=0.3"]
@@ -26,29 +28,36 @@ def _relative(a, b):
     return np.abs(a.x.array - b.x.array).max() / np.abs(b.x.array).max()
 
 
-def test_the_predicted_step_is_newtons_step_from_zero():
-    # sound-bar with RCCM and friction: the pulse crosses, reflects and breaks links at the
-    # free end from step ~80
-    predicted, from_zero = _integrator(True), _integrator(False)
-    n_stars = sum(len(g.comps) for g in predicted.interface.stars.groups)
+@pytest.mark.parametrize("laws", [RCCM, RCCM_DECOUPLED, LINEAR_SOFTENING],
+                         ids=["rccm", "rccm_decoupled", "linear_softening"])
+def test_the_cheap_paths_give_newtons_step_from_zero(laws):
+    """The step with its cheap paths (each star predicted from its stored factors, held
+    stars from their stored inverse: docs/method.md) against every star solved by Newton
+    from zero, on the laws of the structures and the paper's: sound-bar with friction, whose
+    pulse crosses, reflects and breaks links at the free end from step ~80."""
+    cheap, from_zero = _integrator(True, laws), _integrator(False, laws)
+    from_zero.interface.options = from_zero.interface.options._replace(rigid=False)
+    n_stars = sum(len(g.comps) for g in cheap.interface.stars.groups)
     first = []
     for k in range(1, 421):
-        predicted.step()
+        cheap.step()
         from_zero.step()
-        first.append((predicted.interface.first, from_zero.interface.first))
+        first.append((cheap.interface.first, from_zero.interface.first))
         if k == 60:  # no link damaged yet
-            assert (predicted.model.beta == 1).all()
+            assert not (cheap.model.damage() > 0).any()
             # each step solves every star to 1e-10 of its scales from either start: over 60
             # steps the fields differ by at most ~60 x 1e-10 of their size (measured 8e-11)
-            assert _relative(predicted.v, from_zero.v) < 1e-8 and _relative(predicted.u, from_zero.u) < 1e-8
+            assert _relative(cheap.v, from_zero.v) < 1e-8 and _relative(cheap.u, from_zero.u) < 1e-8
     first = np.array(first)[100:]
-    # once the pulse runs, a zero start solves no star at iteration 1, the prediction a large
-    # share (measured 42 %; a wrong affine constant would solve none)
+    # once the pulse runs, a zero start solves no star at iteration 1, the cheap paths a
+    # large share (measured 42 % with rccm; a wrong affine constant would solve none)
     assert np.median(first[:, 1]) == 0 and np.median(first[:, 0]) > 0.25 * n_stars
     # damage is an instability (softening): it amplifies those differences (x10 per burst of
-    # damage, measured), but the same links break
-    broken = predicted.model.broken()
-    assert broken.sum() > 100 and np.array_equal(broken, from_zero.model.broken())
+    # damage, measured), but the same links are damaged and the same break (measured: 236,
+    # 1,283 and 889 damaged, 169, 0 and 24 broken, for rccm, rccm_decoupled and linear softening)
+    damaged = cheap.model.damage() > 0
+    assert damaged.sum() > 100 and np.array_equal(damaged, from_zero.model.damage() > 0)
+    assert np.array_equal(cheap.model.broken(), from_zero.model.broken())
 
 
 def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
