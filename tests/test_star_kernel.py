@@ -635,7 +635,7 @@ def test_a_star_with_clamped_copies_is_solved_by_its_prediction():
 
 def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
     """A star whose springs changed since its factors were formed (STALE: damage grew)
-    keeps them as a chord while each step contracts by CHORD: with the secants changed by
+    keeps them as a chord while each step contracts by StarOptions.chord: with the secants changed by
     1e-4 it reaches the solution of a start from zero with the new data in a few
     iterations, without a new factorisation (the stored factors are untouched); changed
     by a factor 4, the chord does not contract enough and a fresh Jacobian (EXACT) finishes
@@ -647,7 +647,7 @@ def test_stale_factors_converge_by_chord_steps_to_the_fresh_solution():
         if (cache[4] & STICK).any() or cache[6][0] != star_kernel.EXACT or counters[star_kernel.N_STALLED]:
             continue
         outcomes = []
-        for factor in (1 - 1e-4, 0.25):
+        for factor in (1 - 1e-4, 4.0):
             changed = dict(star, k_N=star["k_N"] * factor, k_T=star["k_T"] * factor)
             _, new_data, fresh_cache = _kernel_args(changed)
             x_fresh, _, fresh = _solve(changed, geometry, new_data, fresh_cache)

@@ -118,8 +118,13 @@ class StarOptions(NamedTuple):
     # that a fresh Jacobian is cheaper. Damage goes on changing every step in links already
     # broken (an RCCM link's beta keeps falling as w / Y' while it opens): measured on
     # wall-bending-clamped at 50 ms, 469 of 1,708 links changed their damage in a step and
-    # 197 of its 359 stars were factorised again for them alone.
-    chord: float = 1e-2
+    # 197 of its 359 stars were factorised again for them alone. 1e-2 until a 3D star's fresh
+    # Jacobian and LU (~36 us) were measured against its chord steps (~5 us each): on captured
+    # calls of the cracking bunker-h2 (0.2 m, at steps 1,500, 2,500 and 3,100), its stars off
+    # the held path took 14.79, 19.51, 22.60 ms at 1e-2, 14.43, 18.53, 21.56 at 0.03, 13.73,
+    # 16.61, 20.42 at 0.1 and 14.22, 16.29, 20.20 at 0.3; on the 2D captured calls (the
+    # damaged bars of RCCM and linear softening, the expanding bar) within the noise.
+    chord: float = 0.1
     # A star whose iterate reads another piece than its stored factors' only by links
     # flipping between contact and open (an intact link crossing g_N = 0: its normal row and
     # its spring's n n^T in the momentum block change, rank 2 each) solves with those factors
