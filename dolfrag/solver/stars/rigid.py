@@ -156,14 +156,28 @@ def held_motion(d, geometry, data, p0, p1, l0, l1, inverse, z, x, r):
             A, B = a * d + j, b * d + j
             z[B] += h * w[l] * F + (k * x_in[p0 + A] if fixed[p0 + A] else 0.0)
             z[A] += -h * w[l] * F + (k * x_in[p0 + B] if fixed[p0 + B] else 0.0)
-    shared = len(inverse) == n * n  # one block for every direction, else one each
-    for j in range(d):
-        at = 0 if shared else j * n * n
+    if len(inverse) == n * n:  # one block for every direction: a row's d sums side by side
         for i in range(n):
-            s = 0.0
+            s0, s1, s2 = 0.0, 0.0, 0.0
             for k in range(n):
-                s += inverse[at + i * n + k] * z[k * d + j]
-            x[p0 + i * d + j] = x_in[p0 + i * d + j] if fixed[p0 + i * d + j] else s
+                Q_ik = inverse[i * n + k]
+                s0 += Q_ik * z[k * d]
+                s1 += Q_ik * z[k * d + 1]
+                if d == 3:
+                    s2 += Q_ik * z[k * d + 2]
+            x[p0 + i * d], x[p0 + i * d + 1] = s0, s1
+            if d == 3:
+                x[p0 + i * d + 2] = s2
+    else:  # one block a direction, prescribed components zero in it
+        for j in range(d):
+            for i in range(n):
+                s = 0.0
+                for k in range(n):
+                    s += inverse[j * n * n + i * n + k] * z[k * d + j]
+                x[p0 + i * d + j] = s
+    for c in range(p0, p1):
+        if fixed[c]:
+            x[c] = x_in[c]
     for l in range(l0, l1):
         a, b, stiff = first + slot_A[l], first + slot_B[l], rho[l] / COMPLIANCE
         r[l, 0] = -stiff * (g_n[l, 0] + dg[l, 0] + h * frame_jump(d, frame, l, 0, x, a, b))
