@@ -28,9 +28,11 @@ def _relative(a, b):
     return np.abs(a.x.array - b.x.array).max() / np.abs(b.x.array).max()
 
 
-@pytest.mark.parametrize("laws", [RCCM, RCCM_DECOUPLED, LINEAR_SOFTENING],
+# each law with the fewest links it breaks in the 420 steps (measured 169, 0 and 24: the
+# decoupled law's links soften without breaking, 1,283 of them damaged)
+@pytest.mark.parametrize("laws, least_broken", [(RCCM, 100), (RCCM_DECOUPLED, 0), (LINEAR_SOFTENING, 10)],
                          ids=["rccm", "rccm_decoupled", "linear_softening"])
-def test_the_cheap_paths_give_newtons_step_from_zero(laws):
+def test_the_cheap_paths_give_newtons_step_from_zero(laws, least_broken):
     """The step with its cheap paths (each star predicted from its stored factors, held
     stars from their stored inverse: docs/method.md) against every star solved by Newton
     from zero, on the laws of the structures and the paper's: sound-bar with friction, whose
@@ -57,7 +59,8 @@ def test_the_cheap_paths_give_newtons_step_from_zero(laws):
     # 1,283 and 889 damaged, 169, 0 and 24 broken, for rccm, rccm_decoupled and linear softening)
     damaged = cheap.model.damage() > 0
     assert damaged.sum() > 100 and np.array_equal(damaged, from_zero.model.damage() > 0)
-    assert np.array_equal(cheap.model.broken(), from_zero.model.broken())
+    broken = cheap.model.broken()
+    assert broken.sum() >= least_broken and np.array_equal(broken, from_zero.model.broken())
 
 
 def test_slip_directions_from_an_older_checkpoint_get_zero_scales():
